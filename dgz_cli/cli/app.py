@@ -1,0 +1,143 @@
+"""The `dgz` command line. Only this layer imports typer/rich; heavy modules load inside commands."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+
+from dgz_cli import __version__
+from dgz_cli.spec.errors import DgzError
+
+app = typer.Typer(no_args_is_help=True, pretty_exceptions_enable=False, add_completion=False,
+                  help="dgz — DexGrasp-Zero: onboard any dexterous hand from its URDF and grasp with one policy.")
+bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that print JSON (throughput, latency, peak memory).")
+app.add_typer(bench_app, name="bench")
+out = Console()
+err = Console(stderr=True)
+
+ASSET_HELP = "folder holding hands/ and objects/ (default: $DGZ_ASSET_ROOT)"
+
+
+def _version(value: bool) -> None:
+    if value:
+        out.print(f"dgz {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="print the version and exit")) -> None:
+    pass
+
+
+def _parse_kv(items: list[str] | None) -> dict[str, str]:
+    result = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise DgzError(f"--xacro-arg '{item}' is not KEY=VALUE", "write e.g. --xacro-arg side:=right as side=right")
+        result[key] = value
+    return result
+
+
+@app.command()
+def onboard(
+    urdf: Path = typer.Argument(..., help="hand URDF or .xacro file"),
+    out_path: Optional[Path] = typer.Option(None, "-o", "--out", help="spec to write (default: ./NAME.yaml)"),
+    name: Optional[str] = typer.Option(None, "--name", help="hand name (default: from the file name)"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+    palm_link: Optional[str] = typer.Option(None, "--palm-link", help="palm link, when auto-detection cannot decide"),
+    xacro_arg: Optional[List[str]] = typer.Option(None, "--xacro-arg", help="KEY=VALUE passed to xacro (repeatable)"),
+    overrides_file: Optional[Path] = typer.Option(None, "--overrides", help="YAML of human overrides (see docs)"),
+    as_json: bool = typer.Option(False, "--json", help="print a machine-readable summary on stdout"),
+) -> None:
+    """Read a URDF/xacro, identify nodes and M_h by unit-joint excitation, lint and write a HandSpec."""
+    from dgz_cli.cli import onboard_cmd
+
+    code = onboard_cmd.run(urdf, out_path, name, asset_root, palm_link, _parse_kv(xacro_arg), overrides_file,
+                           as_json, out)
+    raise typer.Exit(code)
+
+
+@app.command()
+def lint(
+    specs: List[str] = typer.Argument(..., help="spec files or shipped hand names"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+    as_json: bool = typer.Option(False, "--json", help="print findings as JSON"),
+) -> None:
+    """Check HandSpecs: schema, node tree, M_h, mask, features, and agreement with their URDF."""
+    from dgz_cli.cli import lint_cmd
+
+    raise typer.Exit(lint_cmd.run(specs, asset_root, as_json, out))
+
+
+@app.command()
+def show(
+    spec: Optional[str] = typer.Argument(None, help="spec file or shipped hand name"),
+    png: Optional[Path] = typer.Option(None, "--png", help="also draw the graph over the skeleton into this PNG"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+    list_hands: bool = typer.Option(False, "--list", help="list the shipped hands"),
+) -> None:
+    """Print a hand's semantic nodes, M_h and mask; optionally draw them (--png)."""
+    from dgz_cli.cli import show_cmd
+
+    raise typer.Exit(show_cmd.run(spec, png, asset_root, list_hands, out))
+
+
+@app.command()
+def schema(overrides: bool = typer.Option(False, "--overrides", help="print the overrides file schema instead")) -> None:
+    """Print the HandSpec JSON schema (for editor validation of spec YAML)."""
+    from dgz_cli.spec.models import HandSpec, Overrides
+
+    model = Overrides if overrides else HandSpec
+    sys.stdout.write(json.dumps(model.model_json_schema(), indent=2) + "\n")
+
+
+@bench_app.command("onboard")
+def bench_onboard(
+    hands: Optional[str] = typer.Option(None, "--hands", help="comma-separated shipped hands (default: all)"),
+    repeat: int = typer.Option(3, "--repeat", min=1, help="runs per hand; the median is reported"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+    as_json: bool = typer.Option(False, "--json", help="print only the JSON"),
+) -> None:
+    """Wall time per shipped hand for parse, compile, excite and write (one core)."""
+    from dgz_cli.bench import onboard_bench
+
+    result = onboard_bench.run([h for h in (hands or "").split(",") if h] or None, repeat, asset_root)
+    if not as_json:
+        onboard_bench.print_table(result, out)
+    sys.stdout.write(json.dumps(result, indent=2) + "\n")
+
+
+def main() -> None:
+    try:
+        app(standalone_mode=False)
+    except DgzError as exc:
+        from rich.markup import escape
+
+        err.print(f"[bold red]error:[/] {escape(exc.message)}" + (f" [dim]— {escape(exc.hint)}[/]" if exc.hint else ""),
+                  soft_wrap=True, highlight=False, markup=True)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        err.print("[red]interrupted[/]")
+        sys.exit(130)
+    except typer.Exit as exc:
+        sys.exit(exc.exit_code)
+    except Exception as exc:  # click usage errors and aborts
+        import click
+
+        if isinstance(exc, click.exceptions.ClickException):
+            exc.show()
+            sys.exit(exc.exit_code)
+        if isinstance(exc, click.exceptions.Abort):
+            sys.exit(1)
+        raise
+
+
+if __name__ == "__main__":
+    main()

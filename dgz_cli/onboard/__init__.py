@@ -1,0 +1,1 @@
+"""URDF/xacro → HandSpec: parse, compile, partition, excite, derive features."""

@@ -1,0 +1,232 @@
+"""Unit-joint excitation in MuJoCo → (primitive, sign, margin) for every movable joint (Supp. S1-B).
+
+For joint j, its value is moved by a small δ with every other actuated joint fixed (mimic
+joints follow their source, as the equality constraints would make them) and the induced
+motion of the child unit is measured in the palm frame: the unit's point t is the fingertip of
+j's finger (the centroid of all fingertips for wrist joints). With r = t − anchor(j), the motion
+is split into three scores whose squares sum to one for a pure rotation:
+
+- FLEX: tip translation along n' (the palm normal made orthogonal to r), per unit lever;
+- ABD:  tip translation along m = r̂ × n' (in-plane, sideways), per unit lever;
+- ROT:  rotation about r̂ itself (torsion of the unit about its own long axis).
+
+The largest score names the primitive; margin = largest − second. A non-thumb joint that is a
+pure twist at the rest pose (Allegro-style finger roots) is excited again with the finger half
+flexed: if the twist then moves the fingertip sideways, it is ABD. Signs follow design.md:
++FLEX moves the tip towards +n; +ABD moves it away from the middle finger (the middle finger
+and the wrist: towards the thumb; the thumb: away from the index); +ROT turns the digit's pad
+(its +n' side) towards the opposing digit (thumb → the other fingertips, fingers → the thumb).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dgz_cli.onboard.compile import Poser
+from dgz_cli.onboard.frame import PalmFrame, tip_positions
+from dgz_cli.onboard.structure import Structure
+from dgz_cli.onboard.urdf import Kinematics
+
+PRIMITIVES = ("FLEX", "ABD", "ROT")
+
+
+@dataclass(frozen=True)
+class ExcitationSettings:
+    delta: float = 0.02  # rad (or m for prismatic joints)
+    flexed_fraction: float = 0.5  # of the closing range, for the re-excitation of twisting roots
+    margin_threshold: float = 0.2  # decisions with a smaller margin are flagged
+
+
+@dataclass(frozen=True)
+class Response:
+    joint: str
+    primitive: str
+    sign: int
+    margin: float
+    scores: tuple[float, float, float]
+    flagged: bool
+    note: str
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 1e-12 else v * 0.0
+
+
+def _rotvec(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """Rotation vector of r1·r0ᵀ (small angles)."""
+    d = r1 @ r0.T
+    return 0.5 * np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]])
+
+
+class Exciter:
+    def __init__(self, kin: Kinematics, poser: Poser, st: Structure, frame: PalmFrame,
+                 settings: ExcitationSettings) -> None:
+        self.kin, self.poser, self.st, self.frame, self.cfg = kin, poser, st, frame, settings
+        self.finger_of: dict[str, int] = {}
+        for i, c in enumerate(st.chains):
+            for j in c.joints:
+                self.finger_of[j] = i
+        self.classes = frame.fingers
+
+    def _unit_point(self, joint: str) -> tuple[np.ndarray, str | None]:
+        i = self.finger_of.get(joint)
+        tips = tip_positions(self.poser, self.st)
+        if i is None:
+            return tips.mean(0), None
+        return tips[i], self.st.chains[i].tip_link
+
+    def _motion(self, q: dict[str, float], joint: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(tip velocity, tip-body angular velocity, anchor, tip) per unit joint velocity at pose q."""
+        j = self.kin.joints[joint]
+        self.poser.pose(q)
+        t0, tip_link = self._unit_point(joint)
+        anchor = self.poser.joint_anchor(joint)
+        rot_link = tip_link or self.st.chains[0].tip_link
+        r0 = self.poser.link_rot(rot_link)
+        value = self.poser.full(q)[joint]
+        step = self.cfg.delta if value + self.cfg.delta <= j.upper or j.type == "continuous" else -self.cfg.delta
+        q1 = dict(q)
+        if j.actuated:
+            q1[joint] = value + step
+            self.poser.pose(q1)
+        else:  # a mimic joint excited on its own (used to group nodes only)
+            self.poser.pose(q, extra={joint: step})
+        t1, _ = self._unit_point(joint)
+        w = _rotvec(r0, self.poser.link_rot(rot_link)) / step
+        if tip_link is None:  # wrist joints move the whole hand: use the palm link's rotation
+            w = self.poser.joint_axis(joint) if j.type != "prismatic" else np.zeros(3)
+        self.poser.pose(q)
+        return (t1 - t0) / step, w, anchor, t0
+
+    def scores(self, q: dict[str, float], joint: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        v, w, anchor, tip = self._motion(q, joint)
+        r = tip - anchor
+        lever = float(np.linalg.norm(r))
+        rh = _unit(r)
+        n = self._reference_normal(joint)
+        n_perp = _unit(n - (n @ rh) * rh)
+        m = np.cross(rh, n_perp)
+        s = np.array([v @ n_perp / max(lever, 1e-6), v @ m / max(lever, 1e-6), w @ rh])
+        if self.kin.joints[joint].type == "prismatic":
+            s[:2] = [v @ n_perp, v @ m]
+        return s, v, w, n_perp
+
+    def _is_thumb(self, joint: str) -> bool:
+        i = self.finger_of.get(joint)
+        return i is not None and self.classes[i] == "thumb"
+
+    def _opposed_target(self) -> np.ndarray:
+        """The point a thumb closes toward: the index fingertip, else the mean non-thumb fingertip."""
+        tips = tip_positions(self.poser, self.st)
+        if "index" in self.classes:
+            return tips[self.classes.index("index")]
+        return tips[[k for k, c in enumerate(self.classes) if c != "thumb"]].mean(0)
+
+    def _reference_normal(self, joint: str) -> np.ndarray:
+        """The direction 'closing' moves a unit toward: +n, or for the thumb the opposed fingertip."""
+        if self._is_thumb(joint):
+            tips = tip_positions(self.poser, self.st)
+            return _unit(self._opposed_target() - tips[self.finger_of[joint]])
+        return self.frame.normal
+
+    def _sign(self, prim: str, joint: str, v: np.ndarray, w: np.ndarray, n_perp: np.ndarray) -> tuple[int, float]:
+        """(sign, strength ∈ [0,1]) of the joint's + direction for primitive ``prim``."""
+        fr = self.frame
+        i = self.finger_of.get(joint)
+        cls = self.classes[i] if i is not None else "wrist"
+        tips = tip_positions(self.poser, self.st)
+        own = tips[i] if i is not None else tips.mean(0)
+        idx = {c: k for k, c in enumerate(self.classes)}
+        non_thumb = [k for k, c in enumerate(self.classes) if c != "thumb"]
+        if prim == "FLEX":
+            d = v @ self._reference_normal(joint)
+            return (1 if d >= 0 else -1), abs(d) / max(np.linalg.norm(v), 1e-9)
+        if prim == "ABD":
+            if cls == "thumb":
+                d = v @ _unit(own - self._opposed_target())
+                if abs(d) < 0.3 * np.linalg.norm(v):  # no clear effect on the gap: palmar abduction is +n
+                    d = v @ fr.normal
+            else:
+                if cls in ("middle", "wrist"):
+                    target = tips[idx["thumb"]] if "thumb" in idx else None
+                    away = (target - own) if target is not None else fr.lateral
+                else:
+                    ref = tips[idx["middle"]] if "middle" in idx else tips[non_thumb].mean(0)
+                    away = own - ref
+                d = (v @ fr.lateral) * np.sign(away @ fr.lateral)
+            return (1 if d >= 0 else -1), min(1.0, abs(d) / max(np.linalg.norm(v), 1e-9))
+        if cls == "thumb":  # +ROT (opposition) brings the (half-flexed) thumb tip toward the opposed fingertip
+            d = v @ _unit(self._opposed_target() - own)
+            return (1 if d >= 0 else -1), min(1.0, abs(d) / max(np.linalg.norm(v), 1e-9))
+        # ROT: turn the pad (+n' side) towards the opposing digit(s)
+        if cls == "thumb":
+            goal = tips[non_thumb].mean(0) - own
+        elif "thumb" in idx:
+            goal = tips[idx["thumb"]] - own
+        else:
+            goal = tips.mean(0) - own
+        dpad = np.cross(w, n_perp)
+        d = dpad @ _unit(goal)
+        return (1 if d >= 0 else -1), min(1.0, abs(d) / max(np.linalg.norm(w), 1e-9))
+
+    def classify(self, joint: str, first_pass: dict[str, Response] | None = None) -> Response:
+        q = self.poser.rest()
+        s, v, w, n_perp = self.scores(q, joint)
+        a = np.abs(s) / max(float(np.linalg.norm(s)), 1e-12)
+        order = np.argsort(-a)
+        prim, margin, note = PRIMITIVES[order[0]], float(a[order[0]] - a[order[1]]), "rest pose"
+        i = self.finger_of.get(joint)
+        if prim == "ROT" and first_pass is not None and i is not None and self.classes[i] != "thumb":
+            q_flex = self._flexed_pose(joint, first_pass)
+            if q_flex is not None:
+                s2, v2, w2, n2 = self.scores(q_flex, joint)
+                a2 = np.abs(s2) / max(float(np.linalg.norm(s2)), 1e-12)
+                sideways = float(np.hypot(a2[0], a2[1]))
+                if sideways > a2[2]:
+                    prim, margin, note = "ABD", sideways - float(a2[2]), "twist at rest, spreads when flexed"
+                    self.poser.pose(q_flex)
+                    sign, strength = self._sign("ABD", joint, v2, w2, n2)
+                    self.poser.pose(q)
+                    return self._response(joint, prim, sign, margin, a2, strength, note)
+        if prim == "ROT" and first_pass is not None and self._is_thumb(joint):
+            q_flex = self._flexed_pose(joint, first_pass)
+            if q_flex is not None:  # a twist moves the tip only once the thumb is flexed
+                _, v2, w2, n2 = self.scores(q_flex, joint)
+                self.poser.pose(q_flex)
+                sign, strength = self._sign(prim, joint, v2, w2, n2)
+                self.poser.pose(q)
+                return self._response(joint, prim, sign, margin, a, strength, note + "; sign from the flexed thumb")
+        self.poser.pose(q)
+        sign, strength = self._sign(prim, joint, v, w, n_perp)
+        return self._response(joint, prim, sign, margin, a, strength, note)
+
+    def _response(self, joint, prim, sign, margin, a, strength, note) -> Response:
+        flagged = margin < self.cfg.margin_threshold or strength < 0.1
+        if strength < 0.1:
+            note += "; sign weakly determined"
+        return Response(joint, prim, int(sign), round(float(margin), 4),
+                        tuple(round(float(x), 4) for x in a), bool(flagged), note)
+
+    def _flexed_pose(self, joint: str, first: dict[str, Response]) -> dict[str, float] | None:
+        chain = self.st.chains[self.finger_of[joint]].joints
+        below = chain[chain.index(joint) + 1:]
+        q = self.poser.rest()
+        moved = False
+        for name in below:
+            r = first.get(name)
+            j = self.kin.joints[name]
+            if r is None or r.primitive != "FLEX" or not j.actuated:
+                continue
+            # r.sign = +1 means +q closes; move towards the closing limit
+            lim = j.upper if r.sign > 0 else j.lower
+            q[name] = q[name] + self.cfg.flexed_fraction * (lim - q[name])
+            moved = True
+        return q if moved else None
+
+    def run(self) -> dict[str, Response]:
+        movable = [n for n, j in self.kin.joints.items() if j.movable and n not in self.st.excluded_joints]
+        first = {n: self.classify(n) for n in movable}
+        return {n: (self.classify(n, first) if first[n].primitive == "ROT" else first[n]) for n in movable}

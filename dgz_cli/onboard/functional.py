@@ -1,0 +1,88 @@
+"""The functional check that defines a "correct" M_h better than any label (design.md).
+
+A primitive command α is pushed through M_h (Δq_j = s_j · α[n_j, p_j], clipped to the limits):
+1. from the rest pose, +FLEX (0.5 rad) on every node moves every fingertip closer to the palm centre;
+2. from a half-closed pose (+FLEX 0.5 rad, where finger-root twists become spreads), +ABD
+   (0.15 rad) on a non-middle, non-thumb finger moves its tip away from the middle finger's
+   axis, and +ABD on all nodes spreads fingertips on opposite sides of the middle finger apart;
+3. from the rest pose, +FLEX and +ROT (0.3 rad) on the thumb's nodes bring the thumb tip toward
+   the index tip (or the nearest other fingertip when there is no index).
+Distances are measured in the palm link's frame, so wrist joints do not fool the check.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from dgz_cli.spec.models import HandSpec
+
+CLOSE, SPREAD, OPPOSE = 0.5, 0.15, 0.3  # rad of primitive command per check
+
+
+def _tips(spec: HandSpec, poser) -> dict[str, np.ndarray]:
+    rot, pos = poser.link_rot(spec.palm.link), poser.link_pos(spec.palm.link)
+    return {n.finger: rot.T @ (poser.link_pos(n.anchor_link, np.array(n.anchor_point)) - pos)
+            for n in spec.nodes if n.type == "fingertip"}
+
+
+def _command(spec: HandSpec, q: dict[str, float], prims: set[str], fingers: set[str] | None,
+             step: float) -> dict[str, float]:
+    finger_of = {n.id: n.finger for n in spec.nodes}
+    q = dict(q)
+    for r in spec.joints:
+        if r.primitive.value in prims and (fingers is None or finger_of[r.node] in fingers):
+            q[r.joint] = float(np.clip(q[r.joint] + r.sign * step, r.lower, r.upper))
+    return q
+
+
+def _apply(spec: HandSpec, poser, prims: set[str], fingers: set[str] | None, step: float,
+           start: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+    poser.pose(_command(spec, start if start is not None else poser.rest(), prims, fingers, step))
+    return _tips(spec, poser)
+
+
+def functional_check(spec: HandSpec, poser) -> list[str]:
+    """Return one message per violated expectation (empty list = pass)."""
+    problems: list[str] = []
+    poser.pose(poser.rest())
+    rest = _tips(spec, poser)
+    center = np.array(spec.palm.center)
+    lateral = np.array(spec.palm.lateral)
+    fingers_with = {p: {n.finger for n in spec.nodes for r in spec.joints if r.node == n.id and r.primitive.value == p}
+                    for p in ("FLEX", "ABD", "ROT")}
+
+    closed = _apply(spec, poser, {"FLEX"}, None, CLOSE)
+    for finger, tip in rest.items():
+        if finger in fingers_with["FLEX"] and not np.linalg.norm(closed[finger] - center) < np.linalg.norm(tip - center):
+            problems.append(f"+FLEX does not move the {finger} fingertip closer to the palm centre")
+
+    others = [f for f in rest if f not in ("middle", "thumb") and f in fingers_with["ABD"]]
+    half = _command(spec, poser.rest(), {"FLEX"}, None, CLOSE)
+    poser.pose(half)
+    rest = _tips(spec, poser)
+    if "middle" in rest:
+        for finger in others:
+            spread = _apply(spec, poser, {"ABD"}, {finger}, SPREAD, half)
+            before = abs((rest[finger] - rest["middle"]) @ lateral)
+            after = abs((spread[finger] - rest["middle"]) @ lateral)
+            if not after > before:
+                problems.append(f"+ABD does not move the {finger} fingertip away from the middle finger")
+    spread = _apply(spec, poser, {"ABD"}, None, SPREAD, half)
+    for a, b in itertools.combinations(others, 2):
+        if "middle" in rest and ((rest[a] - rest["middle"]) @ lateral) * ((rest[b] - rest["middle"]) @ lateral) > 0:
+            continue  # same side of the middle finger: both move the same way, their gap may shrink
+        if not np.linalg.norm(spread[a] - spread[b]) > np.linalg.norm(rest[a] - rest[b]):
+            problems.append(f"+ABD does not spread the {a} and {b} fingertips apart")
+
+    poser.pose(poser.rest())
+    rest = _tips(spec, poser)
+    if "thumb" in rest and fingers_with["FLEX"] | fingers_with["ROT"] >= {"thumb"}:
+        target = "index" if "index" in rest else min((f for f in rest if f != "thumb"),
+                                                     key=lambda f: np.linalg.norm(rest[f] - rest["thumb"]))
+        opposed = _apply(spec, poser, {"FLEX", "ROT"}, {"thumb"}, OPPOSE)
+        if not np.linalg.norm(opposed["thumb"] - rest[target]) < np.linalg.norm(rest["thumb"] - rest[target]):
+            problems.append(f"thumb +FLEX/+ROT does not bring the thumb tip toward the {target} tip")
+    poser.pose(poser.rest())
+    return problems

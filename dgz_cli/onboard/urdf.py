@@ -1,0 +1,298 @@
+"""Read a URDF (or xacro) safely into a validated kinematic tree.
+
+XML is parsed without DTDs or entity expansion; xacro is expanded with the ``xacro``
+package; the URDF semantics are read with ``yourdfpy``; mesh paths (relative, absolute,
+``package://``) are resolved to absolute files and missing ones are reported by name.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from lxml import etree
+
+from dgz_cli.spec.errors import UrdfError
+
+MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+
+
+@dataclass(frozen=True)
+class Mimic:
+    joint: str
+    multiplier: float
+    offset: float
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One URDF joint. ``origin`` is the 4×4 parent-link → joint transform, ``axis`` a unit 3-vector."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin: np.ndarray
+    axis: np.ndarray
+    lower: float
+    upper: float
+    velocity: float
+    effort: float
+    damping: float
+    mimic: Mimic | None
+
+    @property
+    def movable(self) -> bool:
+        return self.type in MOVABLE_TYPES
+
+    @property
+    def actuated(self) -> bool:
+        return self.movable and self.mimic is None
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """A validated URDF kinematic tree plus the sanitized XML that MuJoCo compiles."""
+
+    source: Path
+    sha256: str
+    xml: bytes
+    root: str
+    links: tuple[str, ...]
+    joints: dict[str, Joint]
+    meshes: tuple[Path, ...] = field(default=())
+
+    def children(self, link: str) -> list[Joint]:
+        return [j for j in self.joints.values() if j.parent == link]
+
+    def parent_joint(self, link: str) -> Joint | None:
+        for j in self.joints.values():
+            if j.child == link:
+                return j
+        return None
+
+    @property
+    def actuated(self) -> list[Joint]:
+        """Actuated joints in URDF document order (the default command order)."""
+        return [j for j in self.joints.values() if j.actuated]
+
+    def subtree_joints(self, link: str) -> list[Joint]:
+        out: list[Joint] = []
+        stack = [link]
+        while stack:
+            for j in self.children(stack.pop()):
+                out.append(j)
+                stack.append(j.child)
+        return out
+
+
+def safe_parse(data: bytes, where: str) -> etree._Element:
+    """Parse XML bytes with no DTD loading, no entity expansion and no network access."""
+    parser = etree.XMLParser(
+        resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False, remove_comments=True
+    )
+    try:
+        root = etree.fromstring(data, parser)
+    except etree.XMLSyntaxError as exc:
+        raise UrdfError(f"{where}: malformed XML: {exc.msg} (line {exc.lineno})",
+                        "fix the XML syntax; `xmllint --noout FILE` shows the exact spot") from None
+    tree = root.getroottree()
+    if tree.docinfo.internalDTD is not None or b"<!ENTITY" in data:
+        raise UrdfError(f"{where}: DOCTYPE/ENTITY declarations are not allowed in a robot description",
+                        "remove the <!DOCTYPE ...> block; URDF never needs entities")
+    return root
+
+
+def _expand_xacro(path: Path, args: dict[str, str]) -> bytes:
+    import xacro  # heavy-ish and only needed for .xacro input
+
+    safe_parse(path.read_bytes(), str(path))  # refuse entity bombs before xacro's own parser sees the file
+    try:
+        doc = xacro.process_file(str(path), mappings=dict(args))
+    except Exception as exc:  # xacro raises XacroException, NameError, KeyError, expat errors, ...
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        raise UrdfError(f"{path}: xacro expansion failed: {msg}",
+                        "check the macro/property named above and the --xacro-arg KEY=VALUE values") from None
+    return doc.toxml(encoding="utf-8")
+
+
+def _resolve_mesh(filename: str, urdf_dir: Path) -> Path:
+    if filename.startswith("package://"):
+        pkg, _, rest = filename[len("package://"):].partition("/")
+        bases = [urdf_dir, *urdf_dir.parents]
+        bases += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
+        for base in bases:
+            for candidate in (base / rest if base.name == pkg else None, base / pkg / rest):
+                if candidate is not None and candidate.is_file():
+                    return candidate.resolve()
+        return (urdf_dir / rest).resolve()
+    if filename.startswith("file://"):
+        filename = filename[len("file://"):]
+    p = Path(filename)
+    return (p if p.is_absolute() else urdf_dir / p).resolve()
+
+
+def _finite(value, where: str, fix: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise UrdfError(f"{where} is '{value}', not a number", fix) from None
+    if not math.isfinite(number):
+        raise UrdfError(f"{where} is {value}", fix)
+    return number
+
+
+def load_kinematics(path: Path, xacro_args: dict[str, str] | None = None) -> Kinematics:
+    """Read ``path`` (URDF or xacro), validate it and resolve its meshes.
+
+    Raises :class:`UrdfError` with the file and element named for every problem found.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UrdfError(f"{path}: no such file", "check the path, or set --asset-root / DGZ_ASSET_ROOT")
+    raw = path.read_bytes()
+    sha = hashlib.sha256(raw).hexdigest()
+    is_xacro = path.suffix == ".xacro" or path.name.endswith(".urdf.xacro")
+    data = _expand_xacro(path, xacro_args or {}) if is_xacro else raw
+    root = safe_parse(data, str(path))
+    if root.tag != "robot":
+        raise UrdfError(f"{path}: root element is <{root.tag}>, expected <robot>", "is this really a URDF file?")
+
+    # Drop any <mujoco> element the file carries: compile.py injects its own compiler settings.
+    for el in root.findall("mujoco"):
+        root.remove(el)
+    urdf_dir = path.parent.resolve()
+    meshes: list[Path] = []
+    missing: list[str] = []
+    for link in root.findall("link"):
+        for kind in ("visual", "collision"):
+            for el in list(link.findall(kind)):
+                mesh = el.find("geometry/mesh")
+                if mesh is None:
+                    continue
+                fname = mesh.get("filename", "")
+                resolved = _resolve_mesh(fname, urdf_dir)
+                if kind == "visual":
+                    # Visual meshes are not needed for onboarding or physics; .glb/.dae cannot be decoded anyway.
+                    link.remove(el)
+                    continue
+                if not resolved.is_file():
+                    missing.append(f"{fname} (link '{link.get('name')}')")
+                mesh.set("filename", str(resolved))
+                meshes.append(resolved)
+    if missing:
+        raise UrdfError(f"{path}: missing mesh file {missing[0]}"
+                        + (f" and {len(missing) - 1} more" if len(missing) > 1 else ""),
+                        "restore the mesh next to the URDF or fix the filename/package:// path")
+
+    names = [el.get("name") for el in root.findall("link")]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise UrdfError(f"{path}: duplicate link name '{dup[0]}'", "every <link name=...> must be unique")
+    jnames = [el.get("name") for el in root.findall("joint")]
+    dupj = sorted({n for n in jnames if jnames.count(n) > 1})
+    if dupj:
+        raise UrdfError(f"{path}: duplicate joint name '{dupj[0]}'", "every <joint name=...> must be unique")
+
+    xml = etree.tostring(root, encoding="utf-8")
+    joints = _read_joints(path, xml)
+    links = tuple(n for n in names if n)
+    root_link = _check_tree(path, links, joints)
+    if not any(j.actuated for j in joints.values()):
+        raise UrdfError(f"{path}: no actuated joint (every joint is fixed or mimic)",
+                        "a hand needs at least one revolute/continuous/prismatic joint without <mimic>")
+    return Kinematics(path, sha, xml, root_link, links, joints, tuple(meshes))
+
+
+def _read_joints(path: Path, xml: bytes) -> dict[str, Joint]:
+    import yourdfpy
+
+    try:
+        robot = yourdfpy.URDF.load(io.BytesIO(xml), build_scene_graph=False, load_meshes=False,
+                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
+    except Exception as exc:
+        raise UrdfError(f"{path}: not a valid URDF: {' '.join(str(exc).split())}",
+                        "check the joint/link elements named above") from None
+    joints: dict[str, Joint] = {}
+    for j in robot.joints:
+        where = f"{path}: joint '{j.name}'"
+        if j.type not in (*MOVABLE_TYPES, "fixed", "floating", "planar"):
+            raise UrdfError(f"{where} has unknown type '{j.type}'", "use revolute, continuous, prismatic or fixed")
+        if j.type in ("floating", "planar"):
+            raise UrdfError(f"{where} is {j.type}", "a hand URDF must not contain floating/planar joints; remove it")
+        origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
+        if not np.all(np.isfinite(origin)):
+            raise UrdfError(f"{where}: origin is not finite", "fix the <origin xyz rpy> values")
+        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
+        if j.type in MOVABLE_TYPES:
+            if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-9:
+                raise UrdfError(f"{where}: axis {axis.tolist()} is zero or not finite", "give a unit <axis xyz=...>")
+            axis = axis / np.linalg.norm(axis)
+        lim = j.limit
+        lower, upper, vel, eff = -math.pi, math.pi, 0.0, 0.0
+        if lim is not None:
+            vel = _finite(lim.velocity or 0.0, f"{where} limit velocity", "set a finite velocity (rad/s)")
+            eff = _finite(lim.effort or 0.0, f"{where} limit effort", "set a finite effort")
+        if j.type in ("revolute", "prismatic"):
+            if lim is None or lim.lower is None or lim.upper is None:
+                raise UrdfError(f"{where} has no <limit lower upper>", "revolute/prismatic joints need limits")
+            lower = _finite(lim.lower, f"{where} limit lower", "set a finite lower limit")
+            upper = _finite(lim.upper, f"{where} limit upper", "set a finite upper limit")
+            if lower > upper:
+                raise UrdfError(f"{where}: lower limit {lower} > upper limit {upper}", "swap the limits")
+        damping = 0.0
+        if j.dynamics is not None and j.dynamics.damping is not None:
+            damping = _finite(j.dynamics.damping, f"{where} dynamics damping", "set a finite damping")
+        mimic = None
+        if j.mimic is not None:
+            mimic = Mimic(j.mimic.joint, float(j.mimic.multiplier if j.mimic.multiplier is not None else 1.0),
+                          float(j.mimic.offset or 0.0))
+            if not (math.isfinite(mimic.multiplier) and math.isfinite(mimic.offset)):
+                raise UrdfError(f"{where}: mimic multiplier/offset not finite", "fix the <mimic> element")
+        joints[j.name] = Joint(j.name, j.type, j.parent, j.child, origin, axis, lower, upper, vel, eff, damping, mimic)
+    for j in joints.values():
+        if j.mimic is not None:
+            src = joints.get(j.mimic.joint)
+            if src is None or not src.movable:
+                raise UrdfError(f"{path}: joint '{j.name}' mimics '{j.mimic.joint}', which is not a movable joint",
+                                "point <mimic joint=...> at an existing revolute/prismatic joint")
+            if src.mimic is not None:
+                raise UrdfError(f"{path}: joint '{j.name}' mimics '{src.name}', which is itself a mimic joint",
+                                "chain mimics to the actuated joint directly")
+    return joints
+
+
+def _check_tree(path: Path, links: tuple[str, ...], joints: dict[str, Joint]) -> str:
+    link_set = set(links)
+    parent_of: dict[str, str] = {}
+    for j in joints.values():
+        for end in (j.parent, j.child):
+            if end not in link_set:
+                raise UrdfError(f"{path}: joint '{j.name}' refers to undefined link '{end}'",
+                                "define the link or fix the joint's parent/child")
+        if j.child in parent_of:
+            raise UrdfError(f"{path}: link '{j.child}' has two parent joints", "a URDF must be a tree")
+        parent_of[j.child] = j.name
+    roots = [n for n in links if n not in parent_of]
+    if not roots:
+        raise UrdfError(f"{path}: kinematic loop (every link has a parent)", "a URDF must be a tree; break the cycle")
+    if len(roots) > 1:
+        raise UrdfError(f"{path}: {len(roots)} root links ({', '.join(roots[:3])})",
+                        "connect every link to one root with a joint")
+    # Every link must be reachable from the root, otherwise the unreachable ones form a cycle.
+    seen, stack = {roots[0]}, [roots[0]]
+    while stack:
+        cur = stack.pop()
+        for j in joints.values():
+            if j.parent == cur and j.child not in seen:
+                seen.add(j.child)
+                stack.append(j.child)
+    if len(seen) != len(links):
+        loop = sorted(link_set - seen)
+        raise UrdfError(f"{path}: kinematic loop through link '{loop[0]}'", "a URDF must be a tree; break the cycle")
+    return roots[0]

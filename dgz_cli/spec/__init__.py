@@ -1,0 +1,1 @@
+"""The HandSpec contract. This package imports nothing else of dgz."""

@@ -1,0 +1,107 @@
+"""HandSpec ↔ YAML. Reading uses ``yaml.safe_load``; writing is atomic (temp file + rename)."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import yaml
+from pydantic import ValidationError
+
+from dgz_cli.spec.errors import SpecError
+from dgz_cli.spec.models import HandSpec, Overrides
+
+HEADER = "# HandSpec written by `dgz onboard` — edit overrides in an --overrides file, not here.\n"
+
+
+class _Dumper(yaml.SafeDumper):
+    pass
+
+
+def _represent_list(dumper: yaml.SafeDumper, data: list):
+    flow = len(data) <= 27 and all(isinstance(x, (int, float)) for x in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
+
+
+_Dumper.add_representer(list, _represent_list)
+
+
+def _first_error(exc: ValidationError) -> tuple[str, str]:
+    err = exc.errors()[0]
+    loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+    msg = err["msg"]
+    if err["type"] == "extra_forbidden":
+        return loc, f"unknown key '{loc}'"
+    return loc, msg
+
+
+def parse_spec(data: object, where: str) -> HandSpec:
+    if not isinstance(data, dict):
+        raise SpecError(f"{where}: not a HandSpec (top level must be a mapping)", "regenerate it with `dgz onboard`")
+    version = data.get("schema_version")
+    if version is not None and version != 1:
+        raise SpecError(f"{where}: schema_version {version} is not supported by this dgz (expects 1)",
+                        "re-onboard the hand with this dgz version")
+    try:
+        return HandSpec.model_validate(data)
+    except ValidationError as exc:
+        loc, msg = _first_error(exc)
+        raise SpecError(f"{where}: field '{loc}': {msg}",
+                        "fix that field or regenerate the spec with `dgz onboard`") from None
+
+
+def read_yaml(path: Path) -> object:
+    path = Path(path)
+    if not path.is_file():
+        raise SpecError(f"{path}: no such file", "check the path (`dgz show --list` lists shipped hands)")
+    try:
+        return yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" (line {mark.line + 1})" if mark is not None else ""
+        raise SpecError(f"{path}: malformed YAML{at}: {getattr(exc, 'problem', exc)}", "fix the YAML syntax") from None
+    except UnicodeDecodeError:
+        raise SpecError(f"{path}: not a UTF-8 text file", "is this really a YAML file?") from None
+
+
+def load_spec(path: Path) -> HandSpec:
+    return parse_spec(read_yaml(path), str(path))
+
+
+def load_overrides(path: Path) -> Overrides:
+    data = read_yaml(path)
+    if data is None:
+        data = {}
+    try:
+        return Overrides.model_validate(data)
+    except ValidationError as exc:
+        loc, msg = _first_error(exc)
+        raise SpecError(f"{path}: field '{loc}': {msg}", "see docs/handspec.md for the overrides format") from None
+
+
+def spec_to_yaml(spec: HandSpec) -> str:
+    data = json.loads(spec.model_dump_json())
+    return HEADER + yaml.dump(data, Dumper=_Dumper, sort_keys=False, width=120, allow_unicode=True)
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file in the same directory and a rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_spec(spec: HandSpec, path: Path) -> None:
+    atomic_write(path, spec_to_yaml(spec))
