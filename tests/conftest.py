@@ -1,0 +1,26 @@
+"""Shared fixtures. Vendor assets come from DGZ_ASSET_ROOT; without it those tests skip with a reason."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SPECS = REPO / "hand_specs"
+BUILTIN = REPO / "dgz_cli" / "data" / "hands"
+
+
+def asset_root() -> Path | None:
+    value = os.environ.get("DGZ_ASSET_ROOT")
+    return Path(value) if value else None
+
+
+def needs_assets():
+    return pytest.mark.skipif(asset_root() is None,
+                              reason="DGZ_ASSET_ROOT not set: vendor hand assets unavailable (CI sets it)")
+
+
+def shipped_specs() -> list[Path]:
+    return sorted(SPECS.glob("*.yaml"))
