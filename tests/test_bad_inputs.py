@@ -103,9 +103,12 @@ def _describe(r: Run) -> str:
     return f"exit={r.code}\n--- stdout ---\n{r.stdout}\n--- stderr ---\n{r.stderr}"
 
 
-def assert_clean_failure(r: Run) -> None:
-    assert r.code != 0, "expected a non-zero exit\n" + _describe(r)
+def assert_no_traceback(r: Run) -> None:
     assert "Traceback" not in r.text, "a traceback escaped\n" + _describe(r)
+
+
+def assert_nonzero_exit(r: Run) -> None:
+    assert r.code != 0, "expected a non-zero exit\n" + _describe(r)
 
 
 # --------------------------------------------------------------------------------------------
@@ -116,7 +119,7 @@ def test_good_template_onboards(tmp_path):
     (tmp_path / "good.urdf").write_text(GOOD)
     r = dgz(tmp_path, "onboard", "good.urdf", "-o", "good.yaml")
     assert r.code == 0, _describe(r)
-    assert "Traceback" not in r.text
+    assert_no_traceback(r)
     spec = yaml.safe_load((tmp_path / "good.yaml").read_text())
     assert [row["joint"] for row in spec["joints"]] == ["a_j1", "a_j2", "b_j1", "b_j2"]
     assert not list(tmp_path.glob(".good.yaml.*")), "atomic-write temp file left behind"
@@ -131,7 +134,7 @@ class Case:
     id: str
     files: dict[str, str]  # name (relative to tmp_path) → text
     args: tuple[str, ...]  # after `onboard`; "-o out.yaml" is appended
-    expect: str  # distinctive substring of the error line
+    expect: str | tuple[str, ...]  # distinctive substring(s) of the error line; a tuple means "any of"
     max_seconds: float | None = None
     xfail: str | None = None
     extra_checks: tuple[str, ...] = field(default=())
@@ -139,12 +142,15 @@ class Case:
 
 ONBOARD_CASES = [
     Case("malformed-xml", {"hand.urdf": GOOD.replace("</robot>", "</robo")}, ("hand.urdf",), "malformed XML"),
+    # dgz refuses any DOCTYPE/ENTITY declaration before an XML parser (lxml or xacro's) sees the file.
     Case("entity-bomb", {"hand.urdf": good_urdf(head=BILLION_LAUGHS,
                                                   body_extra="  <bomb>&lol9;</bomb>\n")},
-         ("hand.urdf",), "ENTITY", max_seconds=10.0),
+         ("hand.urdf",), "DOCTYPE/ENTITY declarations are not allowed", max_seconds=10.0),
     Case("entity-bomb-xacro", {"hand.xacro": good_urdf(head=BILLION_LAUGHS, robot_open=XACRO_NS,
                                                          body_extra="  <bomb>&lol9;</bomb>\n")},
-         ("hand.xacro",), "ENTITY", max_seconds=10.0),
+         ("hand.xacro",), "DOCTYPE/ENTITY declarations are not allowed", max_seconds=10.0),
+    Case("doctype-entity", {"hand.urdf": good_urdf(head='<!DOCTYPE robot [ <!ENTITY w "0.02"> ]>\n')},
+         ("hand.urdf",), "ENTITY"),
     Case("missing-mesh", {"hand.urdf": good_urdf(
         palm_collision='\n    <collision><geometry><mesh filename="meshes/nope.stl"/></geometry></collision>')},
          ("hand.urdf",), "missing mesh"),
@@ -161,7 +167,7 @@ ONBOARD_CASES = [
     Case("nan-limit", {"hand.urdf": good_urdf(a_j1_limits=("nan", "1.5"))}, ("hand.urdf",), "is nan"),
     Case("inf-limit", {"hand.urdf": good_urdf(a_j1_limits=("0", "inf"))}, ("hand.urdf",), "is inf"),
     Case("non-numeric-limit", {"hand.urdf": good_urdf(a_j1_limits=("0", "abc"))}, ("hand.urdf",),
-         "not a number"),
+         "joint 'a_j1' limit upper is 'abc', not a number"),
     Case("broken-xacro", {"hand.xacro": good_urdf(robot_open=XACRO_NS,
                                                     body_extra='  <link name="${undefined_prop}"/>\n')},
          ("hand.xacro",), "xacro expansion failed", extra_checks=("undefined_prop",)),
@@ -187,10 +193,11 @@ def test_onboard_rejects(case: Case, tmp_path: Path):
     for name, text in case.files.items():
         (tmp_path / name).write_text(text)
     r = dgz(tmp_path, "onboard", *case.args, "-o", "out.yaml")
-    assert_clean_failure(r)
+    assert_no_traceback(r)
     lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
     assert lines, "no line starting with 'error:' on stderr\n" + _describe(r)
-    assert any(case.expect in ln for ln in lines), f"error line does not say {case.expect!r}\n" + _describe(r)
+    expect = (case.expect,) if isinstance(case.expect, str) else case.expect
+    assert any(e in ln for e in expect for ln in lines), f"error line does not say {expect!r}\n" + _describe(r)
     for s in case.extra_checks:
         assert any(s in ln for ln in lines), f"error line does not name {s!r}\n" + _describe(r)
     assert not (tmp_path / "out.yaml").exists(), "output spec written despite the error"
@@ -198,6 +205,21 @@ def test_onboard_rejects(case: Case, tmp_path: Path):
     assert not stray, f"atomic-write temp files left behind: {stray}"
     if case.max_seconds is not None:
         assert r.seconds < case.max_seconds, f"took {r.seconds:.1f}s (entities expanded?)"
+    assert_nonzero_exit(r)
+
+
+def test_onboard_spec_failing_lint_is_not_written(tmp_path: Path):
+    """Overrides that reverse a finger's flexion make the fresh spec fail the functional check."""
+    (tmp_path / "hand.urdf").write_text(GOOD)
+    (tmp_path / "ov.yaml").write_text("joints:\n  a_j1: {sign: -1, reason: wrong on purpose}\n"
+                                      "  a_j2: {sign: -1, reason: wrong on purpose}\n")
+    r = dgz(tmp_path, "onboard", "hand.urdf", "--overrides", "ov.yaml", "-o", "out.yaml")
+    assert_no_traceback(r)
+    assert any(ln.startswith("error") and "functional check" in ln for ln in r.stdout.splitlines()), _describe(r)
+    assert "out.yaml was not written" in r.stdout, _describe(r)
+    assert not (tmp_path / "out.yaml").exists(), "output spec written despite the lint error"
+    assert not list(tmp_path.glob(".out.yaml.*")), "atomic-write temp file left behind"
+    assert_nonzero_exit(r)
 
 
 # --------------------------------------------------------------------------------------------
@@ -269,17 +291,20 @@ def test_lint_rejects_tampered_spec(tamper, expect: str, good_spec: dict, tmp_pa
         (tmp_path / "bad.yaml").write_text(yaml.safe_dump(tamper(copy.deepcopy(good_spec)), sort_keys=False))
     before = (tmp_path / "bad.yaml").read_bytes()
     r = dgz(tmp_path, "lint", "bad.yaml")
-    assert_clean_failure(r)
+    assert_no_traceback(r)
     assert any(ln.startswith("FAIL") and "bad.yaml" in ln for ln in r.stdout.splitlines()), _describe(r)
     lines = _lint_error_lines(r)
     assert lines, "no indented 'error' line\n" + _describe(r)
     assert any(expect in ln for ln in lines), f"no error line says {expect!r}\n" + _describe(r)
     assert (tmp_path / "bad.yaml").read_bytes() == before, "lint modified the spec"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.yaml"], "lint created files"
+    assert_nonzero_exit(r)
 
 
 def test_lint_missing_spec_file(tmp_path: Path):
     r = dgz(tmp_path, "lint", "no_such.yaml")
-    assert_clean_failure(r)
+    assert_no_traceback(r)
     lines = _lint_error_lines(r)
     assert any("no such" in ln and "no_such.yaml" in ln for ln in lines), _describe(r)
+    assert list(tmp_path.iterdir()) == [], "lint created files"
+    assert_nonzero_exit(r)

@@ -116,7 +116,9 @@ def bench_onboard(
 
 def main() -> None:
     try:
-        app(standalone_mode=False)
+        code = app(standalone_mode=False)  # in this mode typer returns the code of `raise typer.Exit(code)`
+        if isinstance(code, int) and code != 0:
+            sys.exit(code)
     except DgzError as exc:
         from rich.markup import escape
 

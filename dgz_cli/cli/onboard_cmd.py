@@ -47,7 +47,7 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
     if as_json:
         summary = dict(
             hand=spec.name, output=str(out_path) if not errors else None, lint="pass" if not errors else "fail",
-            findings=[f.as_dict() for f in findings], palm_link=spec.palm.link, side=spec.palm.side,
+            findings=[f.as_dict() for f in findings], notes=list(result.notes), palm_link=spec.palm.link, side=spec.palm.side,
             nodes=len(spec.nodes),
             joints=[dict(joint=r.joint, finger=next(n.finger for n in spec.nodes if n.id == r.node), node=r.node,
                          primitive=r.primitive.value, sign=r.sign, margin=r.margin, flagged=r.flagged)
@@ -57,9 +57,12 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
         print_summary(spec, console)
         if carried and spec.overrides.joints:
             console.print(f"[dim]kept {len(spec.overrides.joints)} override(s) from the existing {out_path}[/]")
+        for note in result.notes:
+            console.print(f"[dim]note: {escape(note)}[/]", soft_wrap=True)
         for f in findings:
             colour = "red" if f.level == "error" else "yellow"
-            console.print(f"[{colour}]{f.level}[/] {escape(f.field)}: {escape(f.message)} [dim]— {escape(f.fix)}[/]")
+            console.print(f"[{colour}]{f.level}[/] {escape(f.field)}: {escape(f.message)} [dim]— {escape(f.fix)}[/]",
+                          soft_wrap=True)
         if errors:
             console.print(f"[bold red]lint failed; {out_path} was not written[/]")
         else:

@@ -8,9 +8,6 @@ survive, and MuJoCo turns URDF ``<mimic>`` into joint equality constraints.
 
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -22,17 +19,17 @@ from dgz_cli.spec.errors import UrdfError
 
 
 @contextmanager
-def _quiet_stderr():
-    """MuJoCo's C compiler prints mesh-decoder warnings straight to fd 2; capture them instead."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield tmp
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+def captured_mujoco_warnings():
+    """Route MuJoCo's warnings into a list instead of stderr and ./MUJOCO_LOG.TXT."""
+    import mujoco
+
+    messages: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: messages.append(" ".join(str(msg).split())))
+    try:
+        yield messages
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 def compiler_xml(kin: Kinematics) -> str:
@@ -45,18 +42,22 @@ def compiler_xml(kin: Kinematics) -> str:
     return etree.tostring(root, encoding="unicode")
 
 
-def compile_model(kin: Kinematics):
-    """Return a ``mujoco.MjModel`` of the hand fixed to the world at its root link."""
+def compile_with_warnings(kin: Kinematics):
+    """Return (``mujoco.MjModel`` of the hand fixed to the world at its root link, compiler warnings)."""
     import mujoco
 
-    with _quiet_stderr():
+    with captured_mujoco_warnings() as warnings:
         try:
             model = mujoco.MjModel.from_xml_string(compiler_xml(kin))
         except ValueError as exc:
             msg = " ".join(str(exc).split())
             raise UrdfError(f"{kin.source}: MuJoCo cannot compile this URDF: {msg}",
                             "fix the element named in MuJoCo's message (inertia, mesh, joint)") from None
-    return model
+    return model, list(warnings)
+
+
+def compile_model(kin: Kinematics):
+    return compile_with_warnings(kin)[0]
 
 
 @dataclass

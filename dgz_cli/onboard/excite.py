@@ -192,13 +192,11 @@ class Exciter:
                     self.poser.pose(q)
                     return self._response(joint, prim, sign, margin, a2, strength, note)
         if prim == "ROT" and first_pass is not None and self._is_thumb(joint):
-            q_flex = self._flexed_pose(joint, first_pass)
-            if q_flex is not None:  # a twist moves the tip only once the thumb is flexed
-                _, v2, w2, n2 = self.scores(q_flex, joint)
-                self.poser.pose(q_flex)
-                sign, strength = self._sign(prim, joint, v2, w2, n2)
+            result = self._opposition_sign(joint, first_pass)
+            if result is not None:  # opposition: the twist after which a closing thumb lands nearer the index
+                sign, strength = result
                 self.poser.pose(q)
-                return self._response(joint, prim, sign, margin, a, strength, note + "; sign from the flexed thumb")
+                return self._response(joint, prim, sign, margin, a, strength, note + "; sign by opposition test")
         self.poser.pose(q)
         sign, strength = self._sign(prim, joint, v, w, n_perp)
         return self._response(joint, prim, sign, margin, a, strength, note)
@@ -209,6 +207,28 @@ class Exciter:
             note += "; sign weakly determined"
         return Response(joint, prim, int(sign), round(float(margin), 4),
                         tuple(round(float(x), 4) for x in a), bool(flagged), note)
+
+    def _opposition_sign(self, joint: str, first: dict[str, "Response"]) -> tuple[int, float] | None:
+        """+ROT on the thumb = the twist direction after which closing the thumb's FLEX joints brings
+        its tip nearer the opposed fingertip. Returns (sign, relative strength) or None."""
+        j = self.kin.joints[joint]
+        if not j.actuated:
+            return None
+        gaps = {}
+        for s in (1, -1):
+            q_flex = self._flexed_pose(joint, first)
+            if q_flex is None:
+                return None
+            q_flex[joint] = float(np.clip(q_flex[joint] + s * 0.3, j.lower, j.upper))
+            self.poser.pose(q_flex)
+            own = tip_positions(self.poser, self.st)[self.finger_of[joint]]
+            gaps[s] = float(np.linalg.norm(own - self._opposed_target()))
+        sign = 1 if gaps[1] < gaps[-1] else -1
+        strength = min(1.0, abs(gaps[1] - gaps[-1]) / max(gaps[1], gaps[-1], 1e-9) * 10)
+        if strength < 0.1:  # no clear winner: the wider side of the range is the functional one (flagged)
+            rest = float(np.clip(0.0, j.lower, j.upper))
+            sign = 1 if (j.upper - rest) >= (rest - j.lower) else -1
+        return sign, strength
 
     def _flexed_pose(self, joint: str, first: dict[str, Response]) -> dict[str, float] | None:
         chain = self.st.chains[self.finger_of[joint]].joints

@@ -9,7 +9,7 @@ import numpy as np
 
 from dgz_cli import __version__
 from dgz_cli.onboard import excite, frame, nodes, structure
-from dgz_cli.onboard.compile import Poser, compile_model
+from dgz_cli.onboard.compile import Poser, compile_with_warnings
 from dgz_cli.onboard.features import NORMALIZATION, activation_mask, node_features
 from dgz_cli.onboard.urdf import load_kinematics
 from dgz_cli.spec.catalog import urdf_reference
@@ -23,6 +23,7 @@ FINGER_ORDER = ("thumb", "index", "middle", "ring", "little")
 class OnboardResult:
     spec: HandSpec
     responses: dict[str, excite.Response]
+    notes: tuple[str, ...] = ()  # MuJoCo compiler warnings and similar, for the user to read
 
 
 def _r(v, nd: int = 6) -> list[float]:
@@ -34,7 +35,8 @@ def onboard(urdf: Path, name: str, asset_root: Path | None = None, palm_link: st
             settings: excite.ExcitationSettings = excite.ExcitationSettings()) -> OnboardResult:
     overrides = overrides or Overrides()
     kin = load_kinematics(urdf, xacro_args)
-    poser = Poser(kin, compile_model(kin))
+    model, mj_warnings = compile_with_warnings(kin)
+    poser = Poser(kin, model)
     st = structure.analyse(kin, poser, palm_link)
     fr = frame.estimate(kin, poser, st)
     responses = excite.Exciter(kin, poser, st, fr, settings).run()
@@ -135,4 +137,7 @@ def onboard(urdf: Path, name: str, asset_root: Path | None = None, palm_link: st
         features=dict(names=FEATURE_NAMES, normalization=NORMALIZATION.model_dump(), values=feats),
         overrides=overrides.model_dump(exclude_defaults=True),
     ))
-    return OnboardResult(spec, responses)
+    notes = tuple(f"MuJoCo: {w}" for w in mj_warnings)
+    notes += tuple(f"joint '{r.joint}' → {r.primitive} ({r.note}; margin {r.margin:.2f}): check it with `dgz show`"
+                   for r in responses.values() if r.flagged and r.joint in command)
+    return OnboardResult(spec, responses, notes)

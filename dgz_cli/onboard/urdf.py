@@ -93,6 +93,9 @@ class Kinematics:
 
 def safe_parse(data: bytes, where: str) -> etree._Element:
     """Parse XML bytes with no DTD loading, no entity expansion and no network access."""
+    if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
+        raise UrdfError(f"{where}: DOCTYPE/ENTITY declarations are not allowed in a robot description",
+                        "remove the <!DOCTYPE ...> block; URDF never needs entities")
     parser = etree.XMLParser(
         resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False, remove_comments=True
     )
@@ -101,8 +104,7 @@ def safe_parse(data: bytes, where: str) -> etree._Element:
     except etree.XMLSyntaxError as exc:
         raise UrdfError(f"{where}: malformed XML: {exc.msg} (line {exc.lineno})",
                         "fix the XML syntax; `xmllint --noout FILE` shows the exact spot") from None
-    tree = root.getroottree()
-    if tree.docinfo.internalDTD is not None or b"<!ENTITY" in data:
+    if root.getroottree().docinfo.internalDTD is not None:
         raise UrdfError(f"{where}: DOCTYPE/ENTITY declarations are not allowed in a robot description",
                         "remove the <!DOCTYPE ...> block; URDF never needs entities")
     return root
@@ -199,6 +201,13 @@ def load_kinematics(path: Path, xacro_args: dict[str, str] | None = None) -> Kin
     if dupj:
         raise UrdfError(f"{path}: duplicate joint name '{dupj[0]}'", "every <joint name=...> must be unique")
 
+    for el in root.findall("joint"):  # name the joint for unparseable numbers before yourdfpy sees them
+        for tag, attrs in (("limit", ("lower", "upper", "effort", "velocity")), ("dynamics", ("damping", "friction")),
+                           ("mimic", ("multiplier", "offset"))):
+            sub = el.find(tag)
+            for attr in attrs if sub is not None else ():
+                if sub.get(attr) is not None:
+                    _finite(sub.get(attr), f"{path}: joint '{el.get('name')}' {tag} {attr}", f"set a finite {attr}")
     xml = etree.tostring(root, encoding="utf-8")
     joints = _read_joints(path, xml)
     links = tuple(n for n in names if n)

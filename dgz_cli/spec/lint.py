@@ -113,6 +113,6 @@ def lint_spec(spec: HandSpec) -> list[Finding]:
     for k, r in enumerate(spec.joints):
         if r.flagged:
             out.append(Finding("warning", f"joints[{k}]", f"joint '{r.joint}' → {r.primitive.value} "
-                               f"{'+' if r.sign > 0 else '-'} was ambiguous (margin {r.margin:.2f})",
+                               f"{'+' if r.sign > 0 else '-'} was flagged as uncertain by the excitation (margin {r.margin:.2f})",
                                "check it in `dgz show`; confirm or correct it in an --overrides file"))
     return out
