@@ -8,7 +8,6 @@ survive, and MuJoCo turns URDF ``<mimic>`` into joint equality constraints.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,30 +15,13 @@ from lxml import etree
 
 from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.errors import UrdfError
-
-
-@contextmanager
-def captured_mujoco_warnings():
-    """Route MuJoCo's warnings into a list instead of stderr and ./MUJOCO_LOG.TXT."""
-    import mujoco
-
-    messages: list[str] = []
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda msg: messages.append(" ".join(str(msg).split())))
-    try:
-        yield messages
-    finally:
-        mujoco.set_mju_user_warning(previous)
+from dgz_cli.spec.urdfxml import RobotXml, captured_mujoco_warnings, mujoco_xml
 
 
 def compiler_xml(kin: Kinematics) -> str:
     """The URDF XML with dgz's compiler settings injected (what MuJoCo compiles)."""
     root = etree.fromstring(kin.xml, etree.XMLParser(resolve_entities=False, no_network=True))
-    mj = etree.Element("mujoco")
-    etree.SubElement(mj, "compiler", meshdir=str(kin.source.parent.resolve()), strippath="false",
-                     balanceinertia="true", discardvisual="true", fusestatic="false", angle="radian")
-    root.insert(0, mj)
-    return etree.tostring(root, encoding="unicode")
+    return mujoco_xml(RobotXml(kin.source, kin.sha256, root, kin.meshes))
 
 
 def compile_with_warnings(kin: Kinematics):

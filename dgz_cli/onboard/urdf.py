@@ -7,10 +7,8 @@ package; the URDF semantics are read with ``yourdfpy``; mesh paths (relative, ab
 
 from __future__ import annotations
 
-import hashlib
 import io
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +16,7 @@ import numpy as np
 from lxml import etree
 
 from dgz_cli.spec.errors import UrdfError
+from dgz_cli.spec.urdfxml import read_robot_xml
 
 MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
 
@@ -91,54 +90,6 @@ class Kinematics:
         return out
 
 
-def safe_parse(data: bytes, where: str) -> etree._Element:
-    """Parse XML bytes with no DTD loading, no entity expansion and no network access."""
-    if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
-        raise UrdfError(f"{where}: DOCTYPE/ENTITY declarations are not allowed in a robot description",
-                        "remove the <!DOCTYPE ...> block; URDF never needs entities")
-    parser = etree.XMLParser(
-        resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False, remove_comments=True
-    )
-    try:
-        root = etree.fromstring(data, parser)
-    except etree.XMLSyntaxError as exc:
-        raise UrdfError(f"{where}: malformed XML: {exc.msg} (line {exc.lineno})",
-                        "fix the XML syntax; `xmllint --noout FILE` shows the exact spot") from None
-    if root.getroottree().docinfo.internalDTD is not None:
-        raise UrdfError(f"{where}: DOCTYPE/ENTITY declarations are not allowed in a robot description",
-                        "remove the <!DOCTYPE ...> block; URDF never needs entities")
-    return root
-
-
-def _expand_xacro(path: Path, args: dict[str, str]) -> bytes:
-    import xacro  # heavy-ish and only needed for .xacro input
-
-    safe_parse(path.read_bytes(), str(path))  # refuse entity bombs before xacro's own parser sees the file
-    try:
-        doc = xacro.process_file(str(path), mappings=dict(args))
-    except Exception as exc:  # xacro raises XacroException, NameError, KeyError, expat errors, ...
-        msg = " ".join(str(exc).split()) or type(exc).__name__
-        raise UrdfError(f"{path}: xacro expansion failed: {msg}",
-                        "check the macro/property named above and the --xacro-arg KEY=VALUE values") from None
-    return doc.toxml(encoding="utf-8")
-
-
-def _resolve_mesh(filename: str, urdf_dir: Path) -> Path:
-    if filename.startswith("package://"):
-        pkg, _, rest = filename[len("package://"):].partition("/")
-        bases = [urdf_dir, *urdf_dir.parents]
-        bases += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
-        for base in bases:
-            for candidate in (base / rest if base.name == pkg else None, base / pkg / rest):
-                if candidate is not None and candidate.is_file():
-                    return candidate.resolve()
-        return (urdf_dir / rest).resolve()
-    if filename.startswith("file://"):
-        filename = filename[len("file://"):]
-    p = Path(filename)
-    return (p if p.is_absolute() else urdf_dir / p).resolve()
-
-
 def _finite(value, where: str, fix: str) -> float:
     try:
         number = float(value)
@@ -154,43 +105,8 @@ def load_kinematics(path: Path, xacro_args: dict[str, str] | None = None) -> Kin
 
     Raises :class:`UrdfError` with the file and element named for every problem found.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise UrdfError(f"{path}: no such file", "check the path, or set --asset-root / DGZ_ASSET_ROOT")
-    raw = path.read_bytes()
-    sha = hashlib.sha256(raw).hexdigest()
-    is_xacro = path.suffix == ".xacro" or path.name.endswith(".urdf.xacro")
-    data = _expand_xacro(path, xacro_args or {}) if is_xacro else raw
-    root = safe_parse(data, str(path))
-    if root.tag != "robot":
-        raise UrdfError(f"{path}: root element is <{root.tag}>, expected <robot>", "is this really a URDF file?")
-
-    # Drop any <mujoco> element the file carries: compile.py injects its own compiler settings.
-    for el in root.findall("mujoco"):
-        root.remove(el)
-    urdf_dir = path.parent.resolve()
-    meshes: list[Path] = []
-    missing: list[str] = []
-    for link in root.findall("link"):
-        for kind in ("visual", "collision"):
-            for el in list(link.findall(kind)):
-                mesh = el.find("geometry/mesh")
-                if mesh is None:
-                    continue
-                fname = mesh.get("filename", "")
-                resolved = _resolve_mesh(fname, urdf_dir)
-                if kind == "visual":
-                    # Visual meshes are not needed for onboarding or physics; .glb/.dae cannot be decoded anyway.
-                    link.remove(el)
-                    continue
-                if not resolved.is_file():
-                    missing.append(f"{fname} (link '{link.get('name')}')")
-                mesh.set("filename", str(resolved))
-                meshes.append(resolved)
-    if missing:
-        raise UrdfError(f"{path}: missing mesh file {missing[0]}"
-                        + (f" and {len(missing) - 1} more" if len(missing) > 1 else ""),
-                        "restore the mesh next to the URDF or fix the filename/package:// path")
+    robot = read_robot_xml(path, xacro_args)
+    path, root = robot.source, robot.root
 
     names = [el.get("name") for el in root.findall("link")]
     dup = sorted({n for n in names if names.count(n) > 1})
@@ -215,7 +131,7 @@ def load_kinematics(path: Path, xacro_args: dict[str, str] | None = None) -> Kin
     if not any(j.actuated for j in joints.values()):
         raise UrdfError(f"{path}: no actuated joint (every joint is fixed or mimic)",
                         "a hand needs at least one revolute/continuous/prismatic joint without <mimic>")
-    return Kinematics(path, sha, xml, root_link, links, joints, tuple(meshes))
+    return Kinematics(path, robot.sha256, xml, root_link, links, joints, robot.meshes)
 
 
 def _read_joints(path: Path, xml: bytes) -> dict[str, Joint]:
