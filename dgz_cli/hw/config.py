@@ -1,0 +1,147 @@
+"""Per-hand facts as data: ``dgz_cli/hw/hands/<hand>.yaml`` validated by a frozen pydantic model.
+
+A hand whose wire protocol is already implemented needs only such a file (no code). Channels are listed
+in the device's own order; each names the HandSpec joint it drives (``joints[].joint`` in hand_specs/).
+Native units ↔ radians (``conversion``):
+
+* ``linear``:        rad = sign · native · rad_per_unit + offset              (Dynamixel ticks)
+* ``spec_limits``:   u = (native − lo)/(hi − lo); f = u if sign > 0 else 1 − u;
+                     rad = lower + f · (upper − lower) + offset               (spec joint limits; Inspire)
+* ``device_limits``: same as spec_limits with [lower, upper] = [min_deg, max_deg]·π/180 read from the
+                     device at connect (never URDF limits; Revo2)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from dgz_cli.hw.errors import ConfigError
+
+HANDS_DIR = Path(__file__).resolve().parent / "hands"
+
+
+class Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class PortSettings(Frozen):
+    baudrate: int = Field(gt=0)
+    bytesize: Literal[7, 8] = 8
+    parity: Literal["N", "E", "O"] = "N"
+    stopbits: Literal[1, 2] = 1
+    timeout: float = Field(0.05, gt=0, le=2.0, description="reply timeout per read, s")
+
+
+class Channel(Frozen):
+    name: str = Field(description="the device's name for the channel")
+    id: int | None = Field(None, ge=0, le=252, description="bus id (Dynamixel motor id); Modbus: list order")
+    joint: str = Field(description="HandSpec joint this channel drives (joints[].joint)")
+    sign: Literal[-1, 1] = 1
+    offset: float = Field(0.0, description="rad, added after scaling")
+    native: tuple[int, int] = Field(description="[min, max] in device units; commands are clipped to it")
+
+    @model_validator(mode="after")
+    def _range(self) -> "Channel":
+        if self.native[0] >= self.native[1]:
+            raise ValueError(f"native range {list(self.native)} must be [min, max] with min < max")
+        return self
+
+
+class DynamixelSettings(Frozen):
+    operating_mode: int = Field(5, description="11: 5 = current-based position control")
+    goal_current: int = Field(350, ge=0, description="102, mA-ish units (350 LEAP Lite, 550 Full)")
+    p_gain: int = 600
+    i_gain: int = 0
+    d_gain: int = 200
+    fast_sync_read: bool = Field(True, description="try fast-sync-read (0x8A) first, fall back to sync-read")
+    model_numbers: list[int] = Field(default_factory=list, description="accepted ping model numbers; [] = any")
+
+
+class InspireSettings(Frozen):
+    force: int = Field(500, ge=0, le=1000, description="FORCE_SET 1498 for every finger")
+    speed: int = Field(500, ge=0, le=1000, description="SPEED_SET 1522 while the policy runs")
+    relax_speed: int = Field(200, ge=0, le=1000, description="SPEED_SET used to open the hand on relax")
+
+
+class Revo2Settings(Frozen):
+    speed: int = Field(500, ge=0, le=1000, description="speed word of the 1022 [position, speed] pairs")
+    relax_speed: int = Field(200, ge=0, le=1000)
+    skus: list[int] = Field(default_factory=list, description="accepted SKU values at 901; [] = any")
+
+
+class HandConfig(Frozen):
+    name: str = Field(pattern=r"^[a-z0-9][a-z0-9_\-]*$")
+    protocol: Literal["dynamixel2", "inspire_modbus", "revo2_modbus"]
+    spec: str = Field(description="shipped HandSpec name (hand_specs/<spec>.yaml) or a path")
+    port: PortSettings
+    slave_id: int | None = Field(None, ge=1, le=247, description="Modbus slave id")
+    conversion: Literal["linear", "spec_limits", "device_limits"]
+    rad_per_unit: float | None = Field(None, gt=0, description="linear conversion only")
+    closing: Literal["increasing", "decreasing"] = Field(description="native direction that closes (+FLEX)")
+    channels: list[Channel] = Field(min_length=1)
+    start_pose: dict[str, float] = Field(default_factory=dict, description="joint → rad before the policy starts")
+    dynamixel: DynamixelSettings | None = None
+    inspire: InspireSettings | None = None
+    revo2: Revo2Settings | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "HandConfig":
+        for what, values in (("channel name", [c.name for c in self.channels]),
+                             ("channel joint", [c.joint for c in self.channels])):
+            dup = {v for v in values if values.count(v) > 1}
+            if dup:
+                raise ValueError(f"duplicate {what}: {sorted(dup)}")
+        if self.conversion == "linear" and self.rad_per_unit is None:
+            raise ValueError("conversion 'linear' needs rad_per_unit")
+        if self.protocol == "dynamixel2":
+            ids = [c.id for c in self.channels]
+            if None in ids or len(set(ids)) != len(ids):
+                raise ValueError("every dynamixel channel needs a unique id")
+        elif self.slave_id is None:
+            raise ValueError(f"protocol {self.protocol} needs slave_id")
+        return self
+
+    def settings(self):
+        """The protocol's settings block (defaults when the file omits it)."""
+        if self.protocol == "dynamixel2":
+            return self.dynamixel or DynamixelSettings()
+        if self.protocol == "inspire_modbus":
+            return self.inspire or InspireSettings()
+        return self.revo2 or Revo2Settings()
+
+
+def shipped_hand_configs() -> list[str]:
+    return sorted(p.stem for p in HANDS_DIR.glob("*.yaml"))
+
+
+def hand_config_path(name_or_path: str) -> Path:
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml"):
+        if not p.is_file():
+            raise ConfigError(f"{p}: no such hand file", "check the path")
+        return p
+    candidate = HANDS_DIR / f"{name_or_path}.yaml"
+    if not candidate.is_file():
+        known = ", ".join(shipped_hand_configs())
+        raise ConfigError(f"no hardware driver file for hand '{name_or_path}'",
+                          f"use one of: {known}, 'sim' (simulated), or a path to a hand file")
+    return candidate
+
+
+def load_hand_config(name_or_path: str) -> HandConfig:
+    path = hand_config_path(name_or_path)
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: malformed YAML: {exc}", "fix the YAML syntax") from None
+    try:
+        return HandConfig.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        msg = f"unknown key '{loc}'" if err["type"] == "extra_forbidden" else err["msg"]
+        raise ConfigError(f"{path}: field '{loc}': {msg}", "see docs/deploy.md (hand files)") from None

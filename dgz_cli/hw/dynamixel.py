@@ -1,0 +1,193 @@
+"""Dynamixel Protocol 2.0 in pure Python: packets, CRC16 (poly 0x8005, not reflected), byte stuffing, and a
+bus with ping / read / write / sync-read / sync-write / fast-sync-read over any pyserial-like transport.
+
+Instruction packet: ``FF FF FD 00 | ID | LEN (LE, = instruction + params + 2) | INST | params | CRC (LE)``;
+``FF FF FD`` inside instruction/params is sent as ``FF FF FD FD``. Status packets carry INST 0x55 and an
+error byte. A fast-sync-read answer is one (unstuffed) status packet from ID 0xFE holding, per motor,
+``error, id, data, crc`` (the last motor's crc is the packet's).
+"""
+
+from __future__ import annotations
+
+import struct
+
+from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault
+from dgz_cli.hw.modbus_rtu import BusStats
+from dgz_cli.hw.serial_port import io_error
+
+HEADER = b"\xff\xff\xfd\x00"
+BROADCAST = 0xFE
+PING, READ, WRITE, SYNC_READ, SYNC_WRITE, FAST_SYNC_READ, STATUS = 0x01, 0x02, 0x03, 0x82, 0x83, 0x8A, 0x55
+ERRORS = {1: "result fail", 2: "instruction error", 3: "CRC error", 4: "data range error",
+          5: "data length error", 6: "data limit error", 7: "access error"}
+
+
+def _table() -> list[int]:
+    out = []
+    for i in range(256):
+        crc = i << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x8005) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+        out.append(crc)
+    return out
+
+
+_TABLE = _table()
+
+
+def crc16(data: bytes, crc: int = 0) -> int:
+    """CRC-16 as the Dynamixel 2.0 manual defines it (poly 0x8005, init 0, no reflection)."""
+    for b in data:
+        crc = ((crc << 8) & 0xFFFF) ^ _TABLE[((crc >> 8) ^ b) & 0xFF]
+    return crc
+
+
+def stuff(data: bytes) -> bytes:
+    return data.replace(b"\xff\xff\xfd", b"\xff\xff\xfd\xfd")
+
+
+def unstuff(data: bytes) -> bytes:
+    return data.replace(b"\xff\xff\xfd\xfd", b"\xff\xff\xfd")
+
+
+def packet(dxl_id: int, inst: int, params: bytes = b"", do_stuff: bool = True) -> bytes:
+    body = bytes([inst]) + bytes(params)
+    if do_stuff:
+        body = stuff(body)
+    head = HEADER + struct.pack("<BH", dxl_id, len(body) + 2) + body
+    return head + struct.pack("<H", crc16(head))
+
+
+def sync_params(address: int, length: int, ids) -> bytes:
+    return struct.pack("<HH", address, length) + bytes(ids)
+
+
+class DynamixelBus:
+    def __init__(self, transport, port: str = "port", baudrate: int | None = None) -> None:
+        self.t = transport
+        self.port = port
+        self.baud = f" at {baudrate} baud" if baudrate else ""
+        self.stats = BusStats()
+
+    # -- raw I/O -----------------------------------------------------------------------------------
+    def _send(self, pkt: bytes) -> None:
+        self.stats.requests += 1
+        try:
+            self.t.reset_input_buffer()
+            self.t.write(pkt)
+        except OSError as exc:
+            raise io_error(self.port, exc) from None
+
+    def _recv(self, n: int) -> bytes:
+        try:
+            return self.t.read(n)
+        except OSError as exc:
+            raise io_error(self.port, exc) from None
+
+    def _timeout(self, dxl_id: int, got: bytes) -> BusTimeout:
+        self.stats.timeouts += 1
+        what = "an incomplete status packet" if got else "no status packet"
+        return BusTimeout(f"{self.port}: {what} from Dynamixel ID {dxl_id}{self.baud}",
+                          "check the motor's power and the daisy chain to it; check its id and baud rate "
+                          "(Dynamixel Wizard)")
+
+    def _crc_error(self, dxl_id: int, why: str) -> BusCrcError:
+        self.stats.crc_errors += 1
+        return BusCrcError(f"{self.port}: {why} in the status packet from Dynamixel ID {dxl_id}",
+                           "check the cable and connectors; another program may be using the bus")
+
+    def _receive_raw(self, dxl_id: int, stuffed: bool = True) -> tuple[int, bytes]:
+        """One status packet → (id, body from the instruction byte on)."""
+        head = self._recv(7)
+        if len(head) < 7:
+            raise self._timeout(dxl_id, head)
+        if head[:4] != HEADER:
+            raise self._crc_error(dxl_id, f"bad header {head[:4].hex(' ')}")
+        length = struct.unpack("<H", head[5:7])[0]
+        rest = self._recv(length)
+        if len(rest) < length or length < 4:
+            raise self._timeout(dxl_id, head + rest)
+        frame = head + rest
+        if crc16(frame[:-2]) != struct.unpack("<H", frame[-2:])[0]:
+            raise self._crc_error(dxl_id, "CRC error")
+        body = unstuff(rest[:-2]) if stuffed else rest[:-2]
+        if body[0] != STATUS:
+            raise self._crc_error(dxl_id, f"instruction 0x{body[0]:02X} instead of a status")
+        return head[4], body
+
+    def receive(self, dxl_id: int) -> tuple[int, int, bytes]:
+        """One status packet → (id, error, params)."""
+        got_id, body = self._receive_raw(dxl_id)
+        if len(body) < 2:
+            raise self._crc_error(dxl_id, "status without an error byte")
+        return got_id, body[1], body[2:]
+
+    def _check_error(self, dxl_id: int, error: int) -> None:
+        if error:
+            self.stats.exceptions += 1
+            what = ERRORS.get(error & 0x7F, f"error {error & 0x7F}") if error & 0x7F else "no instruction error"
+            alert = "; hardware alert set (overload, overheat or input voltage)" if error & 0x80 else ""
+            raise DeviceFault(f"{self.port}: Dynamixel ID {dxl_id} reports {what}{alert}",
+                              "read its Hardware Error Status (register 70), let it cool, and power-cycle the hand")
+
+    def _status(self, dxl_id: int) -> bytes:
+        got_id, error, params = self.receive(dxl_id)
+        if got_id != dxl_id:
+            raise self._crc_error(dxl_id, f"reply from ID {got_id}")
+        self._check_error(dxl_id, error)
+        return params
+
+    # -- instructions ------------------------------------------------------------------------------
+    def ping(self, dxl_id: int) -> tuple[int, int]:
+        """(model number, firmware version)."""
+        self._send(packet(dxl_id, PING))
+        params = self._status(dxl_id)
+        if len(params) < 3:
+            raise self._crc_error(dxl_id, "short ping reply")
+        return struct.unpack("<H", params[:2])[0], params[2]
+
+    def read(self, dxl_id: int, address: int, length: int) -> bytes:
+        self._send(packet(dxl_id, READ, struct.pack("<HH", address, length)))
+        data = self._status(dxl_id)
+        if len(data) != length:
+            raise self._crc_error(dxl_id, f"{len(data)} bytes instead of {length}")
+        return data
+
+    def write(self, dxl_id: int, address: int, data: bytes) -> None:
+        self._send(packet(dxl_id, WRITE, struct.pack("<H", address) + bytes(data)))
+        self._status(dxl_id)
+
+    def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
+        params = struct.pack("<HH", address, length)
+        for dxl_id, value in data.items():
+            if len(value) != length:
+                raise ValueError("sync-write data must all have the given length")
+            params += bytes([dxl_id]) + bytes(value)
+        self._send(packet(BROADCAST, SYNC_WRITE, params))
+
+    def sync_read(self, address: int, length: int, ids: list[int]) -> dict[int, bytes]:
+        self._send(packet(BROADCAST, SYNC_READ, sync_params(address, length, ids)))
+        out = {}
+        for dxl_id in ids:
+            out[dxl_id] = self._status(dxl_id)
+            if len(out[dxl_id]) != length:
+                raise self._crc_error(dxl_id, f"{len(out[dxl_id])} bytes instead of {length}")
+        return out
+
+    def fast_sync_read(self, address: int, length: int, ids: list[int]) -> dict[int, bytes]:
+        self._send(packet(BROADCAST, FAST_SYNC_READ, sync_params(address, length, ids)))
+        got_id, body = self._receive_raw(ids[0], stuffed=False)
+        if got_id != BROADCAST:
+            raise self._crc_error(ids[0], f"fast-sync-read answered by ID {got_id}, not broadcast")
+        params = body[1:]  # error1 id1 data1 crc1 … error_n id_n data_n (the last crc is the packet's)
+        block = length + 4
+        if len(params) != len(ids) * block - 2:
+            raise self._crc_error(ids[0], f"fast-sync-read reply of {len(params)} bytes for {len(ids)} motors")
+        out = {}
+        for k, dxl_id in enumerate(ids):
+            start = k * block
+            if params[start + 1] != dxl_id:
+                raise self._crc_error(dxl_id, f"fast-sync-read block {k} is from ID {params[start + 1]}")
+            self._check_error(dxl_id, params[start])
+            out[dxl_id] = params[start + 2:start + 2 + length]
+        return out

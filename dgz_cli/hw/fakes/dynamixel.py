@@ -1,0 +1,136 @@
+"""Fake Dynamixel Protocol 2.0 bus on a pty: one control table (bytearray) per ID, XC330-like addresses.
+
+Implements ping, read, write, sync-read, sync-write and fast-sync-read (switch off with
+``fast_sync=False`` to exercise the driver's fallback). With torque on, a motor moves toward its goal
+position at ``rate`` ticks/s; present current carries one tick of deterministic sensor noise.
+"""
+
+from __future__ import annotations
+
+import struct
+
+from dgz_cli.hw.dynamixel import (BROADCAST, FAST_SYNC_READ, HEADER, PING, READ, STATUS, SYNC_READ, SYNC_WRITE,
+                                  WRITE, crc16, packet, unstuff)
+from dgz_cli.hw.fakes.base import PtyFake, approach
+
+MODEL_XC330_T288 = 1220
+TORQUE, GOAL_POS, PRESENT_CURRENT, PRESENT_VEL, PRESENT_POS, HW_ERROR = 64, 116, 126, 128, 132, 70
+
+
+class DynamixelFake(PtyFake):
+    name = "dynamixel"
+
+    def __init__(self, ids=range(16), rate: float = 4000.0, fast_sync: bool = True, model: int = MODEL_XC330_T288,
+                 start_ticks: int = 2048, **kw) -> None:
+        super().__init__(**kw)
+        self.rate = rate
+        self.fast_sync = fast_sync
+        self.tables: dict[int, bytearray] = {}
+        self.pos: dict[int, float] = {}
+        self._tick = 0
+        for i in ids:
+            t = bytearray(700)
+            struct.pack_into("<H", t, 0, model)
+            t[6], t[7], t[8], t[11] = 52, i, 6, 3  # firmware, id, baud index, operating mode
+            struct.pack_into("<i", t, GOAL_POS, start_ticks)
+            self.tables[i] = t
+            self.pos[i] = float(start_ticks)
+            self._refresh_one(i)
+
+    # -- framing -----------------------------------------------------------------------------------
+    def take_frame(self, buf: bytearray) -> bytes | None:
+        while True:
+            at = buf.find(HEADER)
+            if at < 0:
+                del buf[:max(0, len(buf) - 3)]
+                return None
+            del buf[:at]
+            if len(buf) < 7:
+                return None
+            size = 7 + struct.unpack("<H", buf[5:7])[0]
+            if len(buf) < size:
+                return None
+            frame = bytes(buf[:size])
+            if crc16(frame[:-2]) == struct.unpack("<H", frame[-2:])[0]:
+                del buf[:size]
+                return frame
+            del buf[:1]
+
+    def _status(self, dxl_id: int, params: bytes = b"") -> bytes:
+        error = 0x80 if self.fault == "exception" else 0
+        return packet(dxl_id, STATUS, bytes([error]) + params)
+
+    def handle(self, frame: bytes) -> bytes | None:
+        dxl_id = frame[4]
+        body = unstuff(frame[7:-2])
+        inst, params = body[0], body[1:]
+        if inst == SYNC_WRITE:
+            addr, length = struct.unpack("<HH", params[:4])
+            for k in range(4, len(params), length + 1):
+                i = params[k]
+                if i in self.tables:
+                    self._write(i, addr, params[k + 1:k + 1 + length])
+            return None
+        if inst in (SYNC_READ, FAST_SYNC_READ):
+            addr, length = struct.unpack("<HH", params[:4])
+            ids = [i for i in params[4:] if i in self.tables]
+            if inst == SYNC_READ:
+                return b"".join(self._status(i, self._read(i, addr, length)) for i in ids)
+            if not self.fast_sync:
+                return None  # older firmware: instruction unknown, no answer
+            blob = bytearray()
+            for i in ids:
+                blob += bytes([0x80 if self.fault == "exception" else 0, i]) + self._read(i, addr, length)
+                blob += struct.pack("<H", crc16(bytes(blob)))
+            return self._fast_packet(bytes(blob[:-2]))
+        if dxl_id not in self.tables:
+            return None
+        if inst == PING:
+            t = self.tables[dxl_id]
+            return self._status(dxl_id, bytes(t[0:2]) + bytes([t[6]]))
+        if inst == READ:
+            addr, length = struct.unpack("<HH", params[:4])
+            return self._status(dxl_id, self._read(dxl_id, addr, length))
+        if inst == WRITE:
+            self._write(dxl_id, struct.unpack("<H", params[:2])[0], params[2:])
+            return self._status(dxl_id)
+        return packet(dxl_id, STATUS, bytes([0x02]))  # instruction error
+
+    @staticmethod
+    def _fast_packet(params: bytes) -> bytes:
+        body = bytes([STATUS]) + params  # not stuffed
+        head = HEADER + struct.pack("<BH", BROADCAST, len(body) + 2) + body
+        return head + struct.pack("<H", crc16(head))
+
+    # -- control table -----------------------------------------------------------------------------
+    def _read(self, dxl_id: int, addr: int, length: int) -> bytes:
+        if self.fault != "stale":
+            self._refresh_one(dxl_id)
+        return bytes(self.tables[dxl_id][addr:addr + length])
+
+    def _write(self, dxl_id: int, addr: int, data: bytes) -> None:
+        t = self.tables[dxl_id]
+        if addr < 64 and t[TORQUE]:
+            return  # EEPROM area is locked while torque is on (a real motor answers an access error)
+        t[addr:addr + len(data)] = data
+
+    def torque(self, dxl_id: int) -> bool:
+        return bool(self.tables[dxl_id][TORQUE])
+
+    def goal(self, dxl_id: int) -> int:
+        return struct.unpack_from("<i", self.tables[dxl_id], GOAL_POS)[0]
+
+    def advance(self, dt: float) -> None:
+        for i, t in self.tables.items():
+            if t[TORQUE]:
+                self.pos[i] = approach(self.pos[i], float(self.goal(i)), self.rate * max(dt, 0.0))
+
+    def _refresh_one(self, dxl_id: int) -> None:
+        self._tick += 1
+        t = self.tables[dxl_id]
+        err = self.goal(dxl_id) - self.pos[dxl_id] if t[TORQUE] else 0.0
+        moving = abs(err) >= 1
+        current = (int(max(-300, min(300, err))) if moving else 0) + (self._tick % 2)
+        struct.pack_into("<h", t, PRESENT_CURRENT, current)
+        struct.pack_into("<i", t, PRESENT_VEL, int(self.rate / 60) if moving else 0)
+        struct.pack_into("<i", t, PRESENT_POS, int(round(self.pos[dxl_id])))

@@ -1,0 +1,73 @@
+"""Fake BrainCo Revo2 on a pty (Modbus RTU slave): SKU 901, limits 946/952, set-points 1022, PWM 1046,
+feedback FC04 2000 (6 positions, 6 speeds, 6 currents, 6 states), firmware FC04 3000, serial FC04 3010."""
+
+from __future__ import annotations
+
+from dgz_cli.hw.fakes.base import approach
+from dgz_cli.hw.fakes.modbus import ModbusFake, ascii_regs, u16
+
+SKU = 0x0202
+MIN_DEG = [0, 0, 0, 0, 0, 0]
+MAX_DEG = [59, 90, 81, 81, 81, 81]  # thumb, thumb_aux, index, middle, ring, little
+
+
+class Revo2Fake(ModbusFake):
+    name = "revo2"
+
+    def __init__(self, slave: int = 127, rate: float = 4000.0, firmware: str = "2.0.5", serial: str = "FAKE-R2-0001",
+                 min_deg: list[int] | None = None, max_deg: list[int] | None = None, **kw) -> None:
+        super().__init__(slave, **kw)
+        self.rate = rate  # normalized units per second
+        self.pos = [0.0] * 6
+        self.goal = [0.0] * 6
+        self.pwm_off = False
+        self._tick = 0
+        h = self.holding
+        h[901] = SKU
+        for i in range(6):
+            h[930 + i] = 1500
+            h[946 + i] = u16((min_deg or MIN_DEG)[i])
+            h[952 + i] = u16((max_deg or MAX_DEG)[i])
+            h[958 + i] = 300
+            h[964 + i] = 1500
+        h[937] = 0
+        for base in (1010, 1022):
+            for i in range(12):
+                h[base + i] = 0
+        for base in (1034, 1040, 1046, 1070):
+            for i in range(6):
+                h[base + i] = 0
+        for i, v in enumerate(ascii_regs(firmware, 10)):
+            self.input[3000 + i] = v
+        for i, v in enumerate(ascii_regs(serial, 10)):
+            self.input[3010 + i] = v
+        self.refresh()
+
+    def on_write(self, addr: int, values: list[int]) -> None:
+        h = self.holding
+        if 1010 <= addr < 1034:
+            base = 1010 if addr < 1022 else 1022
+            self.pwm_off = False
+            for i in range(6):
+                self.goal[i] = float(min(1000, h[base + 2 * i]))
+        elif 1046 <= addr < 1052 and all(h[1046 + i] == 0 for i in range(6)):
+            self.pwm_off = True  # zero PWM on every finger: motors unpowered
+            self.goal = list(self.pos)
+
+    def advance(self, dt: float) -> None:
+        if self.pwm_off:
+            return
+        step = self.rate * max(dt, 0.0)
+        self.pos = [approach(p, g, step) for p, g in zip(self.pos, self.goal)]
+
+    def refresh(self) -> None:
+        if self.fault == "stale":
+            return
+        self._tick += 1
+        jitter = self._tick % 2  # sensor noise: a live device never repeats a frame exactly
+        for i in range(6):
+            err = abs(self.goal[i] - self.pos[i])
+            self.input[2000 + i] = u16(round(self.pos[i]))
+            self.input[2006 + i] = u16(0 if err < 1 else round(self.rate / 10))
+            self.input[2012 + i] = u16(0 if self.pwm_off else 80 + min(400, int(err)) + jitter)
+            self.input[2018 + i] = 0 if err < 1 else 1

@@ -1,0 +1,1 @@
+"""MuJoCo grasping environment built from any HandSpec. Imports only ``dgz_cli.spec``."""

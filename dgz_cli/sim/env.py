@@ -1,0 +1,242 @@
+"""Batched grasping environment over many (hand, object) slots, hands mixed in one batch.
+
+API (Gymnasium-style naming, arrays batched over B slots, padded to N nodes and L joints):
+    obs = env.reset(seed)                            # dict of arrays, see ``observation``
+    obs, reward, terminated, truncated, info = env.step(action)
+``action`` (B, 6 + 3N) in [-1, 1]: wrist (Δp in the palm frame f/l/n, Δθ Euler increments of the
+wrist hinges) then (FLEX, ABD, ROT) per node; with ``action_mode="joint"`` it is (B, 6 + L) raw
+joint increments. Finger increments are scaled by 0.015 rad, wrist ones by 0.01 (m or rad).
+Episodes: ``grasp_steps`` policy steps, then ``lift_steps`` during which the wrist is also lifted by
+``lift_height``, then ``hold_steps`` holding; a slot that finishes is reset at once (its final
+statistics are in ``info["episode"]``). A MuJoCo instability resets only that slot and is counted.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from dgz_cli.sim import observe
+from dgz_cli.sim.config import EnvConfig
+from dgz_cli.sim.objects import ObjectModel
+from dgz_cli.sim.reward import TERMS, reward_terms, total
+from dgz_cli.sim.scene import build_scene, static_graph
+from dgz_cli.sim.slot import Slot
+from dgz_cli.spec.models import HandSpec
+
+
+class GraspEnv:
+    def __init__(self, pairs: list[tuple[HandSpec, ObjectModel]], cfg: EnvConfig = EnvConfig(), seed: int = 0,
+                 asset_root: str | None = None, threads: int = 2, use_pen: bool = True) -> None:
+        import copy
+
+        self.cfg, self.use_pen, self.seed = cfg, use_pen, seed
+        cache: dict[tuple[str, str], tuple] = {}
+        self.slots: list[Slot] = []
+        for spec, obj in pairs:
+            key = (spec.name, obj.name)
+            if key not in cache:
+                model, index, _ = build_scene(spec, obj, cfg, asset_root, seed)
+                cache[key] = (model, index)
+            model, index = cache[key]
+            self.slots.append(Slot(spec, obj, copy.copy(model), index, cfg))
+        self.B = len(self.slots)
+        self.N = max(len(s.spec.nodes) for s in self.slots)
+        self.L = max(s.n_joints for s in self.slots)
+        self._static()
+        self.pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+        self.chunks = [list(range(self.B))[k::threads] for k in range(max(1, threads))]
+        self.instabilities = 0
+        self.t = np.zeros(self.B, dtype=np.int64)
+        self.episodes = np.zeros(self.B, dtype=np.int64)
+        self.targets = np.zeros((self.B, self.L))
+        self.wrist_target = np.zeros((self.B, 6))
+        self.prev_palm = np.zeros((self.B, 3))
+        self.prev_rot = np.tile(np.eye(3), (self.B, 1, 1))
+        self.ok_hold = np.ones(self.B, bool)
+        self.ret = np.zeros(self.B)
+        self.term_sums = {k: np.zeros(self.B) for k in TERMS}
+        B, N, L = self.B, self.N, self.L
+        self.buf = dict(xpos=np.zeros((B, N + 2, 3)), xmat=np.tile(np.eye(3).reshape(9), (B, N + 2, 1)),
+                        q=np.zeros((B, L)), qd=np.zeros((B, L + 6)), force=np.zeros((B, N)))
+        for s in self.slots:
+            s.bind(N, L)
+        self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
+        self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
+
+    # ---------------------------------------------------------------- static padded arrays
+    def _static(self) -> None:
+        B, N, L = self.B, self.N, self.L
+        self.node_valid = np.zeros((B, N), bool)
+        self.joint_valid = np.zeros((B, L), bool)
+        self.adjacency = np.zeros((B, N, N), np.float32)
+        self.physical = np.zeros((B, N, 27), np.float32)
+        self.mask = np.zeros((B, N, 3), np.float32)
+        self.finger = np.zeros((B, N, 6))
+        self.node_type = np.zeros((B, N, 6))
+        self.joint_node = np.zeros((B, L), np.int64)
+        self.joint_prim = np.zeros((B, L), np.int64)
+        self.joint_sign = np.zeros((B, L))
+        self.limits = np.zeros((B, L, 2))
+        self.proj = np.zeros((B, 3 * N, L))
+        self.node_point = np.zeros((B, N, 3))
+        self.cloud = np.zeros((B, self.cfg.point_cloud, 3))
+        for b, s in enumerate(self.slots):
+            g = static_graph(s.spec)
+            n, l = len(s.spec.nodes), s.n_joints
+            self.node_valid[b, :n] = True
+            self.joint_valid[b, :l] = True
+            self.adjacency[b, :n, :n] = g["adjacency"]
+            self.physical[b, :n] = g["physical"]
+            self.mask[b, :n] = g["mask"]
+            self.finger[b, :n] = g["finger"]
+            self.node_type[b, :n] = g["node_type"]
+            self.joint_node[b, :l], self.joint_prim[b, :l], self.joint_sign[b, :l] = \
+                g["joint_node"], g["joint_prim"], g["joint_sign"]
+            self.limits[b, :l] = s.idx.limits
+            self.proj[b, :3 * n, :l] = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)
+            self.node_point[b, :n] = s.idx.node_point
+            self.cloud[b] = s.idx.cloud
+
+    @property
+    def action_dim(self) -> int:
+        return 6 + (3 * self.N if self.cfg.action_mode == "primitive" else self.L)
+
+    # ---------------------------------------------------------------- reset
+    def reset(self, seed: int | None = None) -> dict[str, np.ndarray]:
+        if seed is not None:
+            self.seed = seed
+        self.episodes[:] = 0
+        for b in range(self.B):
+            self._reset_slot(b)
+        return self._observe()[0]
+
+    def _reset_slot(self, b: int) -> None:
+        rng = np.random.default_rng([self.seed, b, int(self.episodes[b])])
+        self.episodes[b] += 1
+        s = self.slots[b]
+        s.reset(rng)
+        self.targets[b] = 0.0
+        self.targets[b, :s.n_joints] = s.idx.rest_q
+        self.wrist_target[b] = 0.0
+        self.t[b] = 0
+        self.ok_hold[b] = True
+        self.ret[b] = 0.0
+        for v in self.term_sums.values():
+            v[b] = 0.0
+        s.gather(self.buf, b)
+        rot = self.buf["xmat"][b, self.N + 1].reshape(3, 3)
+        self.prev_rot[b] = rot @ self.palm_axes[b]
+        self.prev_palm[b] = self.buf["xpos"][b, self.N + 1] + rot @ self.palm_center[b]
+
+    # ---------------------------------------------------------------- step
+    def step(self, action: np.ndarray):
+        cfg, B = self.cfg, self.B
+        a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), -1.0, 1.0)
+        wrist, fingers = a[:, :6], a[:, 6:]
+        if cfg.action_mode == "primitive":
+            alpha = fingers.reshape(B, self.N, 3) * self.node_valid[..., None]
+            gathered = alpha[np.arange(B)[:, None], self.joint_node, self.joint_prim]
+            dq = self.joint_sign * gathered * cfg.finger_action_scale * self.joint_valid
+        else:
+            alpha = np.zeros((B, self.N, 3))
+            dq = fingers[:, :self.L] * cfg.finger_action_scale * self.joint_valid
+        new_targets = np.clip(self.targets + dq, self.limits[..., 0], self.limits[..., 1])
+        dq = (new_targets - self.targets) * self.joint_valid
+        self.targets = new_targets
+        palm_rot = self.prev_rot  # palm frame at the last observation
+        dp_world = np.einsum("bij,bj->bi", palm_rot, wrist[:, :3] * cfg.wrist_action_scale)
+        lifting = (self.t >= cfg.grasp_steps) & (self.t < cfg.grasp_steps + cfg.lift_steps)
+        dp_world[:, 2] += lifting * cfg.lift_height / max(1, cfg.lift_steps)
+        mounts = np.stack([s.mount_rot for s in self.slots])
+        self.wrist_target[:, :3] += np.einsum("bji,bj->bi", mounts, dp_world)  # world → mount frame
+        self.wrist_target[:, 3:] += wrist[:, 3:] * cfg.wrist_action_scale
+
+        ok = self._physics()
+        self.t += 1
+        force = self.buf["force"].copy()
+        contact = force > 1e-6
+        obs, d_world, obj_z = self._observe()
+        terms = reward_terms(d_world, contact, force / cfg.force_scale, dq, alpha, self.mask, self.node_valid,
+                             cfg.force_threshold)
+        reward = total(terms, cfg.reward, self.use_pen)
+        reward[~ok] = 0.0
+        risen = obj_z - self._z0() >= cfg.success_fraction * cfg.lift_height
+        holding = self.t > cfg.grasp_steps + cfg.lift_steps
+        self.ok_hold &= np.where(holding, risen, True)
+        self.ret += reward
+        for k in TERMS:
+            self.term_sums[k] += terms[k]
+        done = self.t >= cfg.episode_steps
+        success = done & self.ok_hold & (risen if cfg.hold_steps == 0 else True)
+        info = {"reward_terms": terms, "unstable": ~ok, "success": success, "episode": {}}
+        finished = np.nonzero(done | ~ok)[0]
+        for b in finished:
+            info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], return_=float(self.ret[b]),
+                                           steps=int(self.t[b]), hand=self.slots[b].spec.name,
+                                           object=self.slots[b].obj.name,
+                                           **{f"r_{k}": float(self.term_sums[k][b] / max(1, self.t[b])) for k in TERMS})
+            self.instabilities += int(not ok[b])
+            self._reset_slot(int(b))
+        if len(finished):
+            fresh = self._observe()[0]
+            for key in ("nodes", "global"):
+                obs[key][finished] = fresh[key][finished]
+        return obs, reward.astype(np.float32), done & ok, ~ok, info
+
+    def _z0(self) -> np.ndarray:
+        return np.array([s.z0 for s in self.slots])
+
+    def _physics(self) -> np.ndarray:
+        ctrl = np.concatenate([self.wrist_target, self.targets], axis=1)
+        ok = np.ones(self.B, bool)
+
+        def run(chunk: list[int]) -> None:
+            for b in chunk:
+                s = self.slots[b]
+                ok[b] = s.step(ctrl[b, :6 + s.n_joints])
+                s.gather(self.buf, b)
+
+        if self.pool is None:
+            run(list(range(self.B)))
+        else:
+            list(self.pool.map(run, self.chunks))
+        return ok
+
+    # ---------------------------------------------------------------- observation
+    def _observe(self):
+        """Observation from the batch buffers; returns (obs, node→surface world vectors, object z)."""
+        cfg, buf = self.cfg, self.buf
+        force = buf["force"]
+        contact = force > 1e-6
+        B, N, L = self.B, self.N, self.L
+        xpos, xmat = buf["xpos"], buf["xmat"].reshape(B, N + 2, 3, 3)
+        body_pos, body_rot, q, qd = xpos[:, :N], xmat[:, :N], buf["q"], buf["qd"][:, :L]
+        obj_pos, obj_rot, obj_vel = xpos[:, N].copy(), xmat[:, N].copy(), buf["qd"][:, L:]
+        palm_link_rot = xmat[:, N + 1]
+        palm_rot = palm_link_rot @ self.palm_axes
+        palm_pos = xpos[:, N + 1] + np.einsum("bij,bj->bi", palm_link_rot, self.palm_center)
+        nodes = observe.node_positions(body_pos, body_rot, self.node_point)
+        d_world = observe.nearest_surface(nodes, obj_pos, obj_rot, self.cloud) * self.node_valid[..., None]
+        dt = 1.0 / cfg.control_hz
+        v_w = (palm_pos - self.prev_palm) / dt
+        w_w = observe.rotation_delta(self.prev_rot, palm_rot) / dt
+        self.prev_palm, self.prev_rot = palm_pos, palm_rot
+        center = obj_pos + np.einsum("bij,bpj->bi", obj_rot, self.cloud) / self.cloud.shape[1]
+        lift = self.t >= cfg.grasp_steps
+        glob = observe.global_features(
+            observe.to_frame(center - palm_pos, palm_rot), observe.to_frame(v_w, palm_rot),
+            observe.to_frame(w_w, palm_rot), observe.to_frame(obj_vel[:, :3], palm_rot),
+            observe.to_frame(np.einsum("bij,bj->bi", obj_rot, obj_vel[:, 3:]), palm_rot), lift)
+        x = observe.node_features(observe.to_frame(d_world, palm_rot), observe.primitive_state(q, self.proj),
+                                  observe.primitive_state(qd, self.proj), contact, force, self.finger,
+                                  self.node_type, self.node_valid, cfg.distance_clip, cfg.force_scale)
+        obs = dict(nodes=x, global_=glob, adjacency=self.adjacency, physical=self.physical, mask=self.mask,
+                   node_valid=self.node_valid)
+        obs["global"] = obs.pop("global_")
+        return obs, d_world, obj_pos[:, 2].copy()
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown()

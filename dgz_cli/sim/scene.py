@@ -1,0 +1,201 @@
+"""HandSpec + object → MuJoCo scene, with no hand-specific code.
+
+The hand is compiled from its raw URDF exactly as onboarding compiles it (``spec.urdfxml``),
+mounted on a 6-DoF wrist (3 slides + 3 hinges, position-controlled, gravity-compensated),
+with hand-agnostic position actuators on the actuated joints (M_h order), mimic joints kept
+as equality constraints, the object as a free body and a table plane at z = 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dgz_cli.sim.config import EnvConfig
+from dgz_cli.sim.objects import ObjectModel, object_spec, surface_points
+from dgz_cli.spec.catalog import resolve_urdf
+from dgz_cli.spec.models import FINGER_CLASSES, NODE_TYPES, PRIMITIVES, HandSpec
+from dgz_cli.spec.urdfxml import captured_mujoco_warnings, mujoco_xml, read_robot_xml
+
+HAND_PREFIX = "hand/"
+OBJECT_PREFIX = "obj/"
+WRIST_JOINTS = ("wrist_x", "wrist_y", "wrist_z", "wrist_rx", "wrist_ry", "wrist_rz")
+
+
+@dataclass
+class SceneIndex:
+    """Addresses into one compiled scene. Shapes: L actuated joints, N nodes, P cloud points."""
+
+    wrist_body: int
+    wrist_qadr: np.ndarray  # (6,)
+    hand_qadr: np.ndarray  # (L,) M_h order
+    hand_dadr: np.ndarray  # (L,)
+    limits: np.ndarray  # (L, 2)
+    node_body: np.ndarray  # (N,)
+    node_point: np.ndarray  # (N, 3) anchor in its body frame
+    palm_body: int
+    palm_axes: np.ndarray  # (3, 3) columns f, l, n in the palm body frame
+    palm_center: np.ndarray  # (3,) palm body frame
+    geom_node: np.ndarray  # (ngeom,) node index of hand geoms, -1 otherwise
+    object_body: int
+    object_qadr: int
+    object_dadr: int
+    cloud: np.ndarray  # (P, 3) object frame
+    rest_q: np.ndarray  # (L,)
+
+
+def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
+    """Each hand body → the node that owns it: the node of its nearest moving ancestor joint; the last
+    moving link of a finger (and what is fixed to it) belongs to that finger's fingertip node."""
+    import mujoco
+
+    joint_node = {j: i for i, n in enumerate(spec.nodes) for j in n.joints}
+    tip_node = {n.anchor_link: i for i, n in enumerate(spec.nodes) if n.type == "fingertip"}
+    wrist = next(i for i, n in enumerate(spec.nodes) if n.type == "wrist")
+    out = {}
+    for b in range(model.nbody):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or ""
+        if not name.startswith(prefix):
+            continue
+        cur, node = b, wrist
+        while cur > 0:
+            link = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, cur) or "")[len(prefix):]
+            if link in tip_node:
+                node = tip_node[link]
+                break
+            jnt = model.body_jntadr[cur]
+            if model.body_jntnum[cur] > 0:
+                jname = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, jnt) or "")[len(prefix):]
+                if jname in joint_node:
+                    node = joint_node[jname]
+                    break
+            cur = model.body_parentid[cur]
+        out[b] = node
+    return out
+
+
+def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str | None, visual: bool = False):
+    """The scene as an ``MjSpec`` (call ``.compile()``; ``.to_xml()`` for a standalone file)."""
+    import mujoco
+
+    robot = read_robot_xml(resolve_urdf(spec.provenance.urdf, asset_root), spec.provenance.xacro_args)
+    hand = mujoco.MjSpec.from_string(mujoco_xml(robot))
+    world = mujoco.MjSpec()
+    world.modelname = f"dgz_{spec.name}_{obj.name}"
+    world.option.timestep = cfg.physics_dt
+    world.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    world.compiler.degree = False
+    world.worldbody.add_light(pos=[0, 0, 1.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+    world.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.05],
+                             rgba=[0.6, 0.6, 0.65, 1], friction=[1.0, 0.005, 0.0001])
+    wrist = world.worldbody.add_body(name="wrist", pos=[0, 0, 0.5], gravcomp=1.0)
+    wrist.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], mass=0.2, contype=0, conaffinity=0,
+                   rgba=[0.2, 0.2, 0.2, 1])
+    for k, name in enumerate(WRIST_JOINTS):
+        jtype = mujoco.mjtJoint.mjJNT_SLIDE if k < 3 else mujoco.mjtJoint.mjJNT_HINGE
+        wrist.add_joint(name=name, type=jtype, axis=list(np.eye(3)[k % 3]), armature=0.01, damping=0.0)
+    frame = wrist.add_frame()
+    world.attach(hand, frame=frame, prefix=HAND_PREFIX)
+    for b in world.bodies:
+        if b.name.startswith(HAND_PREFIX):
+            b.gravcomp = 1.0
+    rows = {r.joint: r for r in spec.joints}
+    for j in world.joints:
+        if j.name.startswith(HAND_PREFIX):
+            j.armature = max(j.armature, cfg.joint_armature)
+    for k, name in enumerate(WRIST_JOINTS):
+        kp = cfg.wrist_kp_lin if k < 3 else cfg.wrist_kp_ang
+        _position_actuator(world, name, kp, None)
+    for r in spec.joints:
+        _position_actuator(world, HAND_PREFIX + r.joint, cfg.finger_kp, rows[r.joint].effort or None)
+    world.attach(object_spec(obj, visual), frame=world.worldbody.add_frame(), prefix=OBJECT_PREFIX)
+    return world
+
+
+def _position_actuator(world, joint: str, kp: float, effort: float | None) -> None:
+    import mujoco
+
+    act = world.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    act.set_to_position(kp=kp, dampratio=1.0)
+    if effort is not None and effort > 0:
+        act.forcelimited = True
+        act.forcerange = [-effort, effort]
+
+
+def build_scene(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str | None = None, seed: int = 0):
+    """Compile the scene; returns (MjModel, SceneIndex, compiler warnings)."""
+    import mujoco
+
+    s = build_spec(spec, obj, cfg, asset_root)
+    with captured_mujoco_warnings() as warnings:
+        model = s.compile()
+    return model, index_scene(spec, model, cfg, seed), list(warnings)
+
+
+def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIndex:
+    import mujoco
+
+    def jid(name: str) -> int:
+        return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+    def bid(name: str) -> int:
+        return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+
+    hand_j = [jid(HAND_PREFIX + r.joint) for r in spec.joints]
+    node_body = np.array([bid(HAND_PREFIX + n.anchor_link) for n in spec.nodes])
+    palm = bid(HAND_PREFIX + spec.palm.link)
+    owner = _node_of_body(spec, model, HAND_PREFIX)
+    geom_node = np.array([owner.get(int(model.geom_bodyid[g]), -1) for g in range(model.ngeom)])
+    obj_body = bid(OBJECT_PREFIX + "object")
+    obj_j = model.body_jntadr[obj_body]
+    return SceneIndex(
+        wrist_body=bid("wrist"),
+        wrist_qadr=np.array([model.jnt_qposadr[jid(n)] for n in WRIST_JOINTS]),
+        hand_qadr=np.array([model.jnt_qposadr[j] for j in hand_j]),
+        hand_dadr=np.array([model.jnt_dofadr[j] for j in hand_j]),
+        limits=np.array([[r.lower, r.upper] for r in spec.joints]),
+        node_body=node_body,
+        node_point=np.array([n.anchor_point for n in spec.nodes], dtype=float),
+        palm_body=palm,
+        palm_axes=np.stack([spec.palm.finger_axis, spec.palm.lateral, spec.palm.normal], axis=1),
+        palm_center=np.array(spec.palm.center, dtype=float),
+        geom_node=geom_node,
+        object_body=obj_body,
+        object_qadr=int(model.jnt_qposadr[obj_j]),
+        object_dadr=int(model.jnt_dofadr[obj_j]),
+        cloud=surface_points(model, obj_body, cfg.point_cloud, seed),
+        rest_q=np.clip(0.0, [r.lower for r in spec.joints], [r.upper for r in spec.joints]),
+    )
+
+
+def static_graph(spec: HandSpec) -> dict[str, np.ndarray]:
+    """Per-hand constants for the policy: adjacency (N, N), physical features (N, 27), mask (N, 3),
+    one-hot finger class (N, 6) and node type (N, 6), and the M_h gather arrays (L,)."""
+    ids = {n.id: i for i, n in enumerate(spec.nodes)}
+    n = len(spec.nodes)
+    adj = np.zeros((n, n), dtype=np.float32)
+    for i, node in enumerate(spec.nodes):
+        if node.parent is not None:
+            adj[ids[node.parent], i] = 1.0
+    return dict(
+        adjacency=adj,
+        physical=np.array([spec.features.values[x.id] for x in spec.nodes], dtype=np.float32),
+        mask=np.array([spec.activation_mask[x.id] for x in spec.nodes], dtype=np.float32),
+        finger=np.eye(len(FINGER_CLASSES), dtype=np.float32)[[FINGER_CLASSES.index(x.finger) for x in spec.nodes]],
+        node_type=np.eye(len(NODE_TYPES), dtype=np.float32)[[NODE_TYPES.index(x.type) for x in spec.nodes]],
+        joint_node=np.array([ids[r.node] for r in spec.joints]),
+        joint_prim=np.array([PRIMITIVES.index(r.primitive.value) for r in spec.joints]),
+        joint_sign=np.array([r.sign for r in spec.joints], dtype=np.float64),
+    )
+
+
+def write_scene_xml(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str | None, out: Path) -> None:
+    """A standalone MJCF that opens in MuJoCo's viewer (`python -m mujoco.viewer --mjcf FILE`)."""
+    from dgz_cli.spec.io import atomic_write
+
+    s = build_spec(spec, obj, cfg, asset_root, visual=True)
+    with captured_mujoco_warnings():
+        s.compile()  # an invalid scene fails here, before anything is written
+    atomic_write(out, s.to_xml())
