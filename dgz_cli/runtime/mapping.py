@@ -35,3 +35,19 @@ class MhMap:
     def delta_q(self, alpha: np.ndarray) -> np.ndarray:
         alpha = np.asarray(alpha, dtype=float).reshape(self.n_nodes, 3)
         return self.sign * alpha[self.node, self.prim]
+
+
+def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None) -> np.ndarray:
+    """The pose the hand ramps to before the policy runs: every joint at 0 clipped into its limits (the
+    URDF zero is the flat open hand on the shipped hands), then the hand file's ``start_pose`` entries."""
+    q = np.array([min(max(0.0, j.lower), j.upper) for j in spec.joints], dtype=float)
+    names = [j.joint for j in spec.joints]
+    for name, value in (overrides or {}).items():
+        if name not in names:
+            from dgz_cli.spec.errors import DgzError
+
+            raise DgzError(f"start_pose names joint '{name}', which is not in spec '{spec.name}'",
+                           "use joint names from the spec's joints[].joint")
+        j = spec.joints[names.index(name)]
+        q[names.index(name)] = min(max(float(value), j.lower), j.upper)
+    return q

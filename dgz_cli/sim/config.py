@@ -37,6 +37,8 @@ class EnvConfig(_Frozen):
     wrist_action_scale: float = 0.01
     finger_kp: float = Field(3.0, description="N·m/rad, the same for every hand")
     joint_armature: float = Field(0.001, description="kg·m², added to every hand joint (motor inertia)")
+    wrist_max_lead: float = Field(0.01, description="wrist targets stay within this (m, rad) of the wrist joints")
+    impratio: float = Field(10.0, description="MuJoCo frictional-to-normal impedance ratio (elliptic cones)")
     wrist_kp_lin: float = 2000.0
     wrist_kp_ang: float = 100.0
     point_cloud: int = Field(256, description="object surface points for the node → surface vectors")

@@ -56,14 +56,16 @@ class GraspEnv:
         self.prev_rot = np.tile(np.eye(3), (self.B, 1, 1))
         self.ok_hold = np.ones(self.B, bool)
         self.ret = np.zeros(self.B)
+        self.max_rise = np.zeros(self.B)
         self.term_sums = {k: np.zeros(self.B) for k in TERMS}
         B, N, L = self.B, self.N, self.L
         self.buf = dict(xpos=np.zeros((B, N + 2, 3)), xmat=np.tile(np.eye(3).reshape(9), (B, N + 2, 1)),
-                        q=np.zeros((B, L)), qd=np.zeros((B, L + 6)), force=np.zeros((B, N)))
+                        q=np.zeros((B, L)), qd=np.zeros((B, L + 6)), force=np.zeros((B, N)), wq=np.zeros((B, 6)))
         for s in self.slots:
             s.bind(N, L)
         self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
+        self.grasp_offset = np.stack([s.grasp_offset for s in self.slots])  # (B, 3) palm frame
 
     # ---------------------------------------------------------------- static padded arrays
     def _static(self) -> None:
@@ -123,6 +125,7 @@ class GraspEnv:
         self.t[b] = 0
         self.ok_hold[b] = True
         self.ret[b] = 0.0
+        self.max_rise[b] = 0.0
         for v in self.term_sums.values():
             v[b] = 0.0
         s.gather(self.buf, b)
@@ -148,10 +151,17 @@ class GraspEnv:
         palm_rot = self.prev_rot  # palm frame at the last observation
         dp_world = np.einsum("bij,bj->bi", palm_rot, wrist[:, :3] * cfg.wrist_action_scale)
         lifting = (self.t >= cfg.grasp_steps) & (self.t < cfg.grasp_steps + cfg.lift_steps)
-        dp_world[:, 2] += lifting * cfg.lift_height / max(1, cfg.lift_steps)
+        lift_world = np.zeros((B, 3))
+        lift_world[:, 2] = lifting * cfg.lift_height / max(1, cfg.lift_steps)
         mounts = np.stack([s.mount_rot for s in self.slots])
-        self.wrist_target[:, :3] += np.einsum("bji,bj->bi", mounts, dp_world)  # world → mount frame
-        self.wrist_target[:, 3:] += wrist[:, 3:] * cfg.wrist_action_scale
+        delta = np.concatenate([np.einsum("bji,bj->bi", mounts, dp_world),  # world → mount frame
+                                wrist[:, 3:] * cfg.wrist_action_scale], axis=1)
+        # A blocked wrist must not wind its target up (it would press with ever growing force), and a
+        # pushed wrist must not drag its target along: commands may not grow the lead beyond the max.
+        wq = self.buf["wq"]
+        bound = np.maximum(cfg.wrist_max_lead, np.abs(self.wrist_target - wq))
+        self.wrist_target = np.clip(self.wrist_target + delta, wq - bound, wq + bound)
+        self.wrist_target[:, :3] += np.einsum("bji,bj->bi", mounts, lift_world)  # the scripted lift is not capped
 
         ok = self._physics()
         self.t += 1
@@ -162,7 +172,9 @@ class GraspEnv:
                              cfg.force_threshold)
         reward = total(terms, cfg.reward, self.use_pen)
         reward[~ok] = 0.0
-        risen = obj_z - self._z0() >= cfg.success_fraction * cfg.lift_height
+        rise = obj_z - self._z0()
+        self.max_rise = np.maximum(self.max_rise, rise)
+        risen = rise >= cfg.success_fraction * cfg.lift_height
         holding = self.t > cfg.grasp_steps + cfg.lift_steps
         self.ok_hold &= np.where(holding, risen, True)
         self.ret += reward
@@ -174,7 +186,7 @@ class GraspEnv:
         finished = np.nonzero(done | ~ok)[0]
         for b in finished:
             info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], return_=float(self.ret[b]),
-                                           steps=int(self.t[b]), hand=self.slots[b].spec.name,
+                                           steps=int(self.t[b]), max_rise=float(self.max_rise[b]), hand=self.slots[b].spec.name,
                                            object=self.slots[b].obj.name,
                                            **{f"r_{k}": float(self.term_sums[k][b] / max(1, self.t[b])) for k in TERMS})
             self.instabilities += int(not ok[b])

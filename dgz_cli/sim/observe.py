@@ -16,6 +16,7 @@ import numpy as np
 
 NODE_DIM = 23
 GLOBAL_DIM = 16
+COL_D, COL_THETA, COL_THETA_DOT, COL_CONTACT, COL_FORCE, COL_FINGER, COL_TYPE = 0, 3, 6, 9, 10, 11, 17
 
 
 def node_positions(body_pos: np.ndarray, body_rot: np.ndarray, point: np.ndarray) -> np.ndarray:

@@ -86,6 +86,8 @@ def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str
     world.modelname = f"dgz_{spec.name}_{obj.name}"
     world.option.timestep = cfg.physics_dt
     world.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    world.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC  # elliptic cones + high impratio: grasps slip less
+    world.option.impratio = cfg.impratio
     world.compiler.degree = False
     world.worldbody.add_light(pos=[0, 0, 1.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     world.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.05],

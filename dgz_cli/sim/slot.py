@@ -52,6 +52,10 @@ class Slot:
         p_wp = d.xpos[index.palm_body]
         self.palm_axes_w = r_wp @ index.palm_axes  # palm frame axes in the mount frame
         self.palm_center_w = r_wp @ index.palm_center + p_wp
+        anchors = d.xpos[index.node_body] + np.einsum("nij,nj->ni", d.xmat[index.node_body].reshape(-1, 3, 3),
+                                                      index.node_point)
+        # the open hand's node centroid, palm frame: where a scripted grasp puts the object (f, l)
+        self.grasp_offset = self.palm_axes_w.T @ (anchors.mean(0) - self.palm_center_w)
 
     def bind(self, n_max: int, l_max: int) -> None:
         """Destination rows in the env's padded buffers (N nodes, L joints)."""
@@ -115,6 +119,7 @@ class Slot:
         buf["xpos"][b, self._dest] = d.xpos[self._bodies]
         buf["xmat"][b, self._dest] = d.xmat[self._bodies]
         buf["q"][b, :self.n_joints] = d.qpos[self.idx.hand_qadr]
+        buf["wq"][b] = d.qpos[self.idx.wrist_qadr]
         buf["qd"][b, self._vdest] = d.qvel[self._dofs]
         force = buf["force"][b]
         force[:] = 0.0
@@ -130,6 +135,7 @@ class Slot:
         g1, g2 = d.contact.geom1[:ncon], d.contact.geom2[:ncon]
         node = np.where(self.obj_geom[g1], self.idx.geom_node[g2], np.where(self.obj_geom[g2], self.idx.geom_node[g1], -1))
         sel = np.nonzero((node >= 0) & (d.contact.efc_address[:ncon] >= 0))[0]
-        for k in sel:
+        elliptic = self.model.opt.cone == self.mj.mjtCone.mjCONE_ELLIPTIC
+        for k in sel:  # normal force: first row of an elliptic cone, sum of a pyramid's facets
             adr, dim = d.contact.efc_address[k], d.contact.dim[k]
-            force[node[k]] += d.efc_force[adr:adr + max(1, 2 * (dim - 1))].sum()
+            force[node[k]] += d.efc_force[adr] if elliptic or dim == 1 else d.efc_force[adr:adr + 2 * (dim - 1)].sum()

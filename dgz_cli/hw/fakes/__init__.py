@@ -10,14 +10,17 @@ def fake_for(cfg, **kw) -> PtyFake:
     if cfg.protocol == "revo2_modbus":
         from dgz_cli.hw.fakes.revo2 import Revo2Fake
 
-        return Revo2Fake(slave=cfg.slave_id, **kw)
+        kw.setdefault("slave", cfg.slave_id)
+        return Revo2Fake(**kw)
     if cfg.protocol == "inspire_modbus":
         from dgz_cli.hw.fakes.inspire import InspireFake
 
-        return InspireFake(slave=cfg.slave_id, **kw)
+        kw.setdefault("slave", cfg.slave_id)
+        return InspireFake(**kw)
     from dgz_cli.hw.fakes.dynamixel import DynamixelFake
 
-    return DynamixelFake(ids=[c.id for c in cfg.channels], **kw)
+    kw.setdefault("ids", [c.id for c in cfg.channels])
+    return DynamixelFake(**kw)
 
 
 __all__ = ["FAULTS", "PtyFake", "fake_for"]

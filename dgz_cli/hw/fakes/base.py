@@ -22,9 +22,9 @@ class PtyFake:
     name = "fake"
 
     def __init__(self, clock=time.monotonic) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        self.port = os.ttyname(self.slave)
+        self.master_fd, self.slave_fd = os.openpty()
+        tty.setraw(self.slave_fd)
+        self.port = os.ttyname(self.slave_fd)
         self.clock = clock
         self.lock = threading.RLock()
         self._fault: str | None = None
@@ -56,7 +56,7 @@ class PtyFake:
         with self.lock:
             if not self.closed:
                 self.closed = True
-                for fd in (self.master, self.slave):
+                for fd in (self.master_fd, self.slave_fd):
                     try:
                         os.close(fd)
                     except OSError:
@@ -85,13 +85,15 @@ class PtyFake:
     def _run(self) -> None:
         while not self._stop.is_set() and not self.closed:
             try:
-                ready, _, _ = select.select([self.master], [], [], 0.02)
+                ready, _, _ = select.select([self.master_fd], [], [], 0.005)
             except (OSError, ValueError):
                 return
             if not ready:
+                with self.lock:
+                    self._step_physics()
                 continue
             try:
-                chunk = os.read(self.master, 4096)
+                chunk = os.read(self.master_fd, 4096)
             except OSError:
                 if self.closed:
                     return
@@ -104,9 +106,7 @@ class PtyFake:
                     if frame is None:
                         break
                     self.requests += 1
-                    now = self.clock()
-                    self.advance(now - self._last)
-                    self._last = now
+                    self._step_physics()
                     if self._fault in ("no_answer", "disconnect"):
                         continue
                     reply = self.handle(frame)
@@ -115,9 +115,14 @@ class PtyFake:
                             reply = reply[:-1] + bytes([reply[-1] ^ 0x5A])
                         self._send(reply)
 
+    def _step_physics(self) -> None:
+        now = self.clock()
+        self.advance(now - self._last)
+        self._last = now
+
     def _send(self, data: bytes) -> None:
         try:
-            os.write(self.master, data)
+            os.write(self.master_fd, data)
         except OSError:
             pass
 

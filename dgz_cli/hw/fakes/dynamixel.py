@@ -130,7 +130,7 @@ class DynamixelFake(PtyFake):
         t = self.tables[dxl_id]
         err = self.goal(dxl_id) - self.pos[dxl_id] if t[TORQUE] else 0.0
         moving = abs(err) >= 1
-        current = (int(max(-300, min(300, err))) if moving else 0) + (self._tick % 2)
+        current = (int(max(-300, min(300, err))) if moving else 0) + (self.requests % 3)
         struct.pack_into("<h", t, PRESENT_CURRENT, current)
         struct.pack_into("<i", t, PRESENT_VEL, int(self.rate / 60) if moving else 0)
         struct.pack_into("<i", t, PRESENT_POS, int(round(self.pos[dxl_id])))

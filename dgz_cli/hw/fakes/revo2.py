@@ -64,7 +64,7 @@ class Revo2Fake(ModbusFake):
         if self.fault == "stale":
             return
         self._tick += 1
-        jitter = self._tick % 2  # sensor noise: a live device never repeats a frame exactly
+        jitter = self.requests % 3  # sensor noise: a live device never repeats a frame exactly
         for i in range(6):
             err = abs(self.goal[i] - self.pos[i])
             self.input[2000 + i] = u16(round(self.pos[i]))

@@ -1,0 +1,243 @@
+"""The control loop: read → observe → policy → safety → write at a fixed rate, with a safe exit.
+
+Phases: ``ramp`` (slowly to the start pose, skipped in a dry run), ``grasp`` (the policy, 130 steps by
+default) and ``lift`` (a scripted wrist command; with arm interface ``none`` it is only logged while the
+fingers hold their targets). Faults stop the loop at once: a device fault or disconnect, a non-finite
+action, ``max_bus_errors`` lost/garbled replies in a row, ``stale_reads`` repeated feedback frames while
+the hand is being moved, ``max_overruns`` late steps in a row, or a policy exception. The exit action is
+``on_exit`` (hold or relax; a second Ctrl-C relaxes at once); if it fails, ``torque_off()`` runs in
+``finally``. A dry run reads but never writes.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dgz_cli.hw.driver import HandDriver
+from dgz_cli.hw.errors import TRANSIENT, HardwareError, StaleFeedback
+from dgz_cli.runtime.filters import KalmanCV
+from dgz_cli.runtime.mapping import MhMap
+from dgz_cli.runtime.policy import ProprioObservation, StepInput
+from dgz_cli.runtime.rate import InterruptGuard, RateLoop
+from dgz_cli.runtime.safety import SafetyConfig, SafetyFilter
+from dgz_cli.runtime.steplog import StepLogger
+from dgz_cli.spec.errors import DgzError
+from dgz_cli.spec.models import HandSpec
+
+SCALES = (0.01, 0.015)  # wrist, fingers: what a normalized policy output of 1 means
+
+
+class LoopOverrun(DgzError):
+    """The loop missed its deadline too many times in a row."""
+
+
+class _StopRequested(Exception):
+    pass
+
+
+@dataclass
+class RunConfig:
+    rate_hz: float = 20.0
+    grasp_steps: int = 130
+    lift_steps: int = 30
+    lift_command: tuple = (0.0, 0.0, 0.01, 0.0, 0.0, 0.0)  # wrist Δ per step while lifting (m, rad)
+    arm: str = "none"
+    on_exit: str = "hold"
+    dry_run: bool = False
+    max_bus_errors: int = 3
+    stale_reads: int = 3
+    max_overruns: int = 5
+    ramp_speed: float = 0.3  # rad/s
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+
+
+@dataclass
+class RunResult:
+    ok: bool = False
+    exit_code: int = 1
+    reason: str = ""
+    hint: str = ""
+    steps: int = 0
+    ramp_steps: int = 0
+    overruns: int = 0
+    bus_errors: int = 0
+    exit_action: str = "none"
+    target: np.ndarray | None = None
+    measured: np.ndarray | None = None
+    periods: list = field(default_factory=list)
+
+
+class Runner:
+    def __init__(self, driver: HandDriver, spec: HandSpec, policy, cfg: RunConfig = RunConfig(), builder=None,
+                 logger: StepLogger | None = None, guard: InterruptGuard | None = None, context: dict | None = None,
+                 clock=time.monotonic, sleep=time.sleep) -> None:
+        if cfg.on_exit not in ("hold", "relax"):
+            raise DgzError(f"--on-exit {cfg.on_exit!r} is not supported", "use hold or relax")
+        self.driver, self.spec, self.policy, self.cfg = driver, spec, policy, cfg
+        self.builder = builder or ProprioObservation()
+        self.log = logger or StepLogger(None)
+        self.guard = guard or InterruptGuard()
+        self.context = context or {}
+        self.clock, self.sleep = clock, sleep
+        self.mh = MhMap(spec)
+        self.kf = KalmanCV(6, 1.0 / cfg.rate_hz)
+        self.res = RunResult()
+        self._streak = self._stale = 0
+        self._prev_fp = self._prev_written = None
+        self._moving = False
+
+    # -- bus helpers -------------------------------------------------------------------------------
+    def _transient(self, exc: HardwareError) -> None:
+        self.res.bus_errors += 1
+        self._streak += 1
+        if self._streak >= self.cfg.max_bus_errors:
+            raise HardwareError(f"{self._streak} bus errors in a row; last: {exc.message}", exc.hint)
+
+    def _read(self, required: bool = False):
+        while True:
+            try:
+                state = self.driver.read_state()
+            except TRANSIENT as exc:
+                self._transient(exc)
+                if required:
+                    continue
+                return None
+            self._streak = 0
+            self._check_stale(state)
+            self.res.measured = state.q
+            return state
+
+    def _write(self, target: np.ndarray) -> None:
+        if self.cfg.dry_run:
+            return
+        self._moving = self._prev_written is not None and bool(np.any(np.abs(target - self._prev_written) > 1e-9))
+        self._prev_written = target.copy()
+        try:
+            self.driver.write_targets(target)
+        except TRANSIENT as exc:
+            self._transient(exc)
+
+    def _check_stale(self, state) -> None:
+        if self.cfg.dry_run or not state.fingerprint:
+            return
+        if state.fingerprint == self._prev_fp and self._moving:
+            self._stale += 1
+            if self._stale >= self.cfg.stale_reads:
+                raise StaleFeedback(f"{self.driver.port}: feedback frozen: {self._stale} reads in a row repeated the "
+                                    "previous frame while the hand was commanded to move",
+                                    "the hand's controller may have hung: power-cycle it and check the cable")
+        else:
+            self._stale = 0
+        self._prev_fp = state.fingerprint
+
+    # -- phases ------------------------------------------------------------------------------------
+    def _tick(self, k: int, phase: str, t_start: float, **fields) -> None:
+        late = self.rate.wait()
+        self.log.step(k=k, phase=phase, t=t_start - self.rate.t0, loop_ms=1e3 * (self.clock() - t_start),
+                      late_ms=1e3 * max(late, 0.0), overrun=late > 0, bus_errors=self.res.bus_errors, **fields)
+        if self.rate.consecutive >= self.cfg.max_overruns:
+            raise LoopOverrun(f"control loop late {self.rate.consecutive} steps in a row "
+                              f"({1e3 * self.rate.period:.0f} ms period, last {1e3 * late:.1f} ms late)",
+                              "the policy or the bus is too slow for this rate: use a faster machine/GPU, "
+                              "close other programs, or lower the rate")
+
+    def _ramp(self, start_pose: np.ndarray) -> None:
+        safety, step = self.safety, self.cfg.ramp_speed / self.cfg.rate_hz
+        goal = np.clip(start_pose, safety.lo, safety.hi)
+        n_max = int(np.ceil(np.max(np.abs(goal - safety.target)) / step)) + 1
+        for k in range(n_max):
+            if self.guard.stop_requested:
+                raise _StopRequested
+            t0 = self.clock()
+            target = safety.approach(goal, step)
+            self._write(target)
+            state = self._read()
+            self.res.ramp_steps += 1
+            self._tick(k, "ramp", t0, target=target, measured=None if state is None else state.q)
+            if np.max(np.abs(goal - target)) < 1e-12:
+                break
+
+    def _episode(self) -> None:
+        cfg, safety = self.cfg, self.safety
+        last_action = np.zeros(self.mh.action_dim)
+        wrist_f = np.zeros(6)
+        lift = np.zeros(self.mh.action_dim)
+        lift[:6] = cfg.lift_command
+        scale = np.concatenate([np.full(6, SCALES[0]), np.full(3 * self.mh.n_nodes, SCALES[1])])
+        for k in range(cfg.grasp_steps + cfg.lift_steps):
+            if self.guard.stop_requested:
+                raise _StopRequested
+            t0 = self.clock()
+            phase = "grasp" if k < cfg.grasp_steps else "lift"
+            state = self._read()
+            if phase == "grasp":
+                obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist_f))
+                raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
+                if getattr(self.policy, "normalized_actions", False) and raw.shape == scale.shape:
+                    raw = raw * scale
+            else:
+                raw = lift
+            cmd = safety.step(raw)
+            wrist_f = self.kf.update(cmd.wrist)
+            self._write(cmd.target)
+            last_action = self.mh.join(cmd.wrist, cmd.alpha)
+            self.res.steps += 1
+            self.res.target = cmd.target
+            self._tick(k, phase, t0, action=raw, wrist_cmd=cmd.wrist, wrist_filtered=wrist_f, arm=cfg.arm,
+                       target=cmd.target, measured=None if state is None else state.q,
+                       effort=None if state is None else state.effort, limited=cmd.limited)
+
+    # -- entry point -------------------------------------------------------------------------------
+    def run(self, start_pose: np.ndarray | None = None) -> RunResult:
+        res, cfg = self.res, self.cfg
+        immediate = False
+        try:
+            self.safety = SafetyFilter(self.spec, self.driver.limits(), 1.0 / cfg.rate_hz, cfg.safety)
+            first = self._read(required=True)
+            self.safety.reset(first.q)
+            self.builder.reset(self.spec, self.context)
+            if hasattr(self.policy, "reset"):
+                self.policy.reset()
+            self.rate = RateLoop(cfg.rate_hz, self.clock, self.sleep)
+            if not cfg.dry_run:
+                self.driver.enable()
+                if start_pose is not None:
+                    self._ramp(np.asarray(start_pose, dtype=float))
+            self._episode()
+            res.ok, res.exit_code = True, 0
+            res.reason = f"completed {res.steps} steps ({cfg.grasp_steps} grasp + {cfg.lift_steps} lift)"
+        except _StopRequested:
+            res.exit_code, res.reason = 130, f"stopped by Ctrl-C after {res.steps} steps"
+        except KeyboardInterrupt:
+            immediate = True
+            res.exit_code, res.reason = 130, "second Ctrl-C: relaxing at once"
+        except DgzError as exc:
+            res.reason, res.hint = exc.message, exc.hint
+        except Exception as exc:  # a policy or observation builder bug must still end in a safe stop
+            res.reason = f"{type(exc).__name__} in the control loop: {' '.join(str(exc).split())}"
+            res.hint = "this is a bug in the policy or observation builder; the hand was stopped"
+        finally:
+            if not cfg.dry_run:
+                res.exit_action = self._safe_exit(immediate)
+            rate = getattr(self, "rate", None)
+            if rate is not None:
+                res.overruns, res.periods = rate.overruns, list(rate.periods)
+            self.log.end(ok=res.ok, exit_code=res.exit_code, reason=res.reason, hint=res.hint, steps=res.steps,
+                         overruns=res.overruns, bus_errors=res.bus_errors, exit_action=res.exit_action)
+        return res
+
+    def _safe_exit(self, immediate: bool) -> str:
+        want = "relax" if immediate or self.cfg.on_exit == "relax" else "hold"
+        try:
+            (self.driver.relax if want == "relax" else self.driver.hold)()
+            return want
+        except (Exception, KeyboardInterrupt):
+            pass
+        try:
+            self.driver.torque_off()
+            return "torque off"
+        except (Exception, KeyboardInterrupt):
+            return "none (hand unreachable)"

@@ -1,0 +1,57 @@
+"""A scripted grasp controller that uses only the HandSpec (through the env's observation).
+
+Approach along the palm normal (steering the object centre under the open hand's node centroid), stop when the palm centre
+(the wrist node's anchor) is ``standoff`` from the object surface, touches it, or stops getting closer,
+then close with +FLEX on every
+node; the env's lift phase lifts the wrist. It proves the env and the signs end to end and is the
+floor a learned policy must beat.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dgz_cli.sim.observe import COL_CONTACT, COL_D, COL_TYPE
+from dgz_cli.spec.models import NODE_TYPES
+
+
+class ScriptedGrasp:
+    def __init__(self, n_nodes: int, grasp_offset: np.ndarray, standoff: float = 0.03,
+                 distance_clip: float = 0.3) -> None:
+        """``grasp_offset`` (B, 3): palm centre → the open hand's node centroid, palm frame; the
+        controller steers the object centre under it (f, l) while approaching along n."""
+        self.n_nodes, self.offset, self.standoff, self.clip = n_nodes, grasp_offset, standoff, distance_clip
+        self.closing: np.ndarray | None = None
+        self.last_gap: np.ndarray | None = None
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Forget the phase of the slots in ``mask`` (all when None)."""
+        if self.closing is not None:
+            if mask is None:
+                self.closing[:] = False
+                self.last_gap[:] = np.inf
+            else:
+                self.closing[mask] = False
+                self.last_gap[mask] = np.inf
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        """(B, 6 + 3N) primitive action from the observation dict of :class:`GraspEnv`."""
+        nodes, glob, valid = obs["nodes"], obs["global"], obs["node_valid"]
+        b = nodes.shape[0]
+        if self.closing is None:
+            self.closing = np.zeros(b, bool)
+            self.last_gap = np.full(b, np.inf)
+        wrist_node = np.argmax(nodes[:, :, COL_TYPE + NODE_TYPES.index("wrist")] * valid, axis=1)
+        palm_gap = np.linalg.norm(nodes[np.arange(b), wrist_node, COL_D:COL_D + 3], axis=-1) * self.clip
+        palm_touch = nodes[np.arange(b), wrist_node, COL_CONTACT] > 0
+        stalled = self.last_gap - palm_gap < 0.002  # the palm stopped getting closer: something is in the way
+        self.closing |= (palm_gap < self.standoff) | palm_touch | stalled
+        self.last_gap = palm_gap
+        action = np.zeros((b, 6 + 3 * self.n_nodes), dtype=np.float32)
+        error = glob[:, :3] * 0.5 - self.offset  # object centre relative to the grasp point, m
+        approach = np.stack([error[:, 0] * 20.0, error[:, 1] * 20.0, np.ones(b)], axis=1)
+        action[:, :3] = np.where(self.closing[:, None], 0.0, np.clip(approach, -1, 1))
+        flex = np.zeros((b, self.n_nodes, 3), dtype=np.float32)
+        flex[:, :, 0] = obs["mask"][:, :, 0]
+        action[:, 6:] = np.where(self.closing[:, None], flex.reshape(b, -1), 0.0)
+        return action
