@@ -98,6 +98,59 @@ def schema(overrides: bool = typer.Option(False, "--overrides", help="print the 
     sys.stdout.write(json.dumps(model.model_json_schema(), indent=2) + "\n")
 
 
+@app.command()
+def scene(
+    hand: str = typer.Option(..., "--hand", help="shipped hand name or spec file"),
+    obj: str = typer.Option(..., "--object", help="object: a YCB-45 folder name (025_mug) or sphere/box/cylinder/capsule"),
+    out_path: Path = typer.Option(..., "-o", "--out", help="MJCF file to write"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+) -> None:
+    """Write a standalone MuJoCo scene (hand on a 6-DoF wrist + object + table) for MuJoCo's viewer."""
+    from dgz_cli.cli import sim_cmd
+
+    raise typer.Exit(sim_cmd.scene(hand, obj, out_path, asset_root, out))
+
+
+@app.command("eval")
+def evaluate(
+    policy: str = typer.Option("scripted", "--policy", help="'scripted' (the spec-only baseline)"),
+    hand: List[str] = typer.Option(..., "--hand", help="shipped hand name or spec file (repeatable)"),
+    objects: str = typer.Option("ycb45", "--objects", help="ycb45, primitives, or comma-separated object names"),
+    trials: int = typer.Option(25, "--trials", min=1, help="episodes per (hand, object)"),
+    seed: int = typer.Option(0, "--seed", help="randomization seed"),
+    zero_shot: bool = typer.Option(False, "--zero-shot", help="refuse hands the policy was trained on"),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="write results as JSON"),
+    csv_out: Optional[Path] = typer.Option(None, "--csv", help="write per-episode rows as CSV"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+) -> None:
+    """Success rate per hand and object under the protocol (lift, hold), with both cores."""
+    from dgz_cli.cli import sim_cmd
+
+    hands = [h for item in hand for h in item.split(",") if h]
+    raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
+                                      asset_root, out))
+
+
+@bench_app.command("sim")
+def bench_sim(
+    hands: str = typer.Option("allegro,leap,inspire,ability", "--hands", help="comma-separated shipped hands"),
+    objects: str = typer.Option("primitives", "--objects", help="objects to cycle through"),
+    envs: int = typer.Option(32, "--envs", min=1, help="number of slots"),
+    steps: int = typer.Option(150, "--steps", min=10, help="control steps per measurement (< one episode)"),
+    threads: int = typer.Option(2, "--threads", min=1, help="physics worker threads"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+    as_json: bool = typer.Option(False, "--json", help="print only the JSON"),
+) -> None:
+    """Env control steps/s vs raw mj_step control steps/s on the same scenes and control sequence."""
+    from dgz_cli.bench import sim_bench
+
+    result = sim_bench.run([h for h in hands.split(",") if h], objects, envs, steps, threads, asset_root)
+    if not as_json:
+        out.print(f"env {result['env_control_steps_per_s']} steps/s, raw {result['raw_control_steps_per_s']} "
+                  f"steps/s, ratio {result['ratio']}")
+    sys.stdout.write(json.dumps(result, indent=2) + "\n")
+
+
 @bench_app.command("onboard")
 def bench_onboard(
     hands: Optional[str] = typer.Option(None, "--hands", help="comma-separated shipped hands (default: all)"),

@@ -4,8 +4,8 @@ API (Gymnasium-style naming, arrays batched over B slots, padded to N nodes and 
     obs = env.reset(seed)                            # dict of arrays, see ``observation``
     obs, reward, terminated, truncated, info = env.step(action)
 ``action`` (B, 6 + 3N) in [-1, 1]: wrist (Δp in the palm frame f/l/n, Δθ Euler increments of the
-wrist hinges) then (FLEX, ABD, ROT) per node; with ``action_mode="joint"`` it is (B, 6 + L) raw
-joint increments. Finger increments are scaled by 0.015 rad, wrist ones by 0.01 (m or rad).
+wrist hinges) then (FLEX, ABD, ROT) per node; with ``action_mode="joint"`` (the paper's w/o-primitives
+ablation) a node's three values are raw increments of its actuated joints in M_h order, no sign. Finger increments are scaled by 0.015 rad, wrist ones by 0.01 (m or rad).
 Episodes: ``grasp_steps`` policy steps, then ``lift_steps`` during which the wrist is also lifted by
 ``lift_height``, then ``hold_steps`` holding; a slot that finishes is reset at once (its final
 statistics are in ``info["episode"]``). A MuJoCo instability resets only that slot and is counted.
@@ -80,6 +80,7 @@ class GraspEnv:
         self.joint_node = np.zeros((B, L), np.int64)
         self.joint_prim = np.zeros((B, L), np.int64)
         self.joint_sign = np.zeros((B, L))
+        self.joint_slot = np.zeros((B, L), np.int64)
         self.limits = np.zeros((B, L, 2))
         self.proj = np.zeros((B, 3 * N, L))
         self.node_point = np.zeros((B, N, 3))
@@ -97,13 +98,17 @@ class GraspEnv:
             self.joint_node[b, :l], self.joint_prim[b, :l], self.joint_sign[b, :l] = \
                 g["joint_node"], g["joint_prim"], g["joint_sign"]
             self.limits[b, :l] = s.idx.limits
+            seen: dict[int, int] = {}
+            for j, node in enumerate(g["joint_node"]):  # position of each joint among its node's joints
+                self.joint_slot[b, j] = seen.get(int(node), 0)
+                seen[int(node)] = self.joint_slot[b, j] + 1
             self.proj[b, :3 * n, :l] = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)
             self.node_point[b, :n] = s.idx.node_point
             self.cloud[b] = s.idx.cloud
 
     @property
     def action_dim(self) -> int:
-        return 6 + (3 * self.N if self.cfg.action_mode == "primitive" else self.L)
+        return 6 + 3 * self.N
 
     # ---------------------------------------------------------------- reset
     def reset(self, seed: int | None = None) -> dict[str, np.ndarray]:
@@ -138,13 +143,14 @@ class GraspEnv:
         cfg, B = self.cfg, self.B
         a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), -1.0, 1.0)
         wrist, fingers = a[:, :6], a[:, 6:]
+        alpha = fingers.reshape(B, self.N, 3) * self.node_valid[..., None]
         if cfg.action_mode == "primitive":
-            alpha = fingers.reshape(B, self.N, 3) * self.node_valid[..., None]
             gathered = alpha[np.arange(B)[:, None], self.joint_node, self.joint_prim]
             dq = self.joint_sign * gathered * cfg.finger_action_scale * self.joint_valid
         else:
-            alpha = np.zeros((B, self.N, 3))
-            dq = fingers[:, :self.L] * cfg.finger_action_scale * self.joint_valid
+            gathered = alpha[np.arange(B)[:, None], self.joint_node, self.joint_slot]
+            dq = gathered * cfg.finger_action_scale * self.joint_valid
+            alpha = np.zeros_like(alpha)  # no primitive axes, so no feasibility penalty
         new_targets = np.clip(self.targets + dq, self.limits[..., 0], self.limits[..., 1])
         dq = (new_targets - self.targets) * self.joint_valid
         self.targets = new_targets

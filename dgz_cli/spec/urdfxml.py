@@ -128,13 +128,19 @@ def mujoco_xml(robot: RobotXml) -> str:
 
 @contextmanager
 def captured_mujoco_warnings():
-    """Route MuJoCo's warnings into a list instead of stderr and ./MUJOCO_LOG.TXT."""
+    """Route MuJoCo's warnings (C-level ``mju_warning`` and the Python ``UserWarning`` that MjSpec
+    compilation raises) into a list instead of stderr and ./MUJOCO_LOG.TXT."""
+    import warnings as pywarnings
+
     import mujoco
 
     messages: list[str] = []
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(lambda msg: messages.append(" ".join(str(msg).split())))
     try:
-        yield messages
+        with pywarnings.catch_warnings(record=True) as caught:
+            pywarnings.simplefilter("always")
+            yield messages
+        messages.extend(" ".join(str(w.message).split()) for w in caught)
     finally:
         mujoco.set_mju_user_warning(previous)
