@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from dgz_cli.hw.errors import (BusCrcError, BusTimeout, DeviceFault, Disconnected, HardwareError, IdentityError)
+from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault, Disconnected, HardwareError, IdentityError
 from dgz_cli.hw.factory import load_hand, make_driver
 from dgz_cli.hw.fakes import fake_for
 from dgz_cli.hw.fakes.dynamixel import TORQUE

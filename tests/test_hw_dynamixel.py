@@ -6,7 +6,7 @@ import struct
 
 import pytest
 
-from dgz_cli.hw.dynamixel import (BROADCAST, STATUS, DynamixelBus, crc16, packet, stuff, unstuff)
+from dgz_cli.hw.dynamixel import BROADCAST, STATUS, DynamixelBus, crc16, packet, stuff, unstuff
 from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault
 from dgz_cli.hw.fakes.dynamixel import DynamixelFake
 from dgz_cli.hw.serial_port import open_serial

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import yaml
+from pydantic import ValidationError
 
 from dgz_cli.hw.config import HANDS_DIR, HandConfig, load_hand_config, shipped_hand_configs
 from dgz_cli.hw.errors import ConfigError
@@ -27,7 +28,7 @@ def test_shipped_hand_files():
     for hand in shipped_hand_configs():
         m, cfg, spec = mapper(hand)
         assert sorted(m.joint_names) == sorted(c.joint for c in cfg.channels)  # every spec joint has a channel
-        with pytest.raises(Exception):
+        with pytest.raises(ValidationError):
             cfg.name = "x"  # frozen
 
 

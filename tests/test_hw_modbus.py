@@ -5,8 +5,17 @@ from __future__ import annotations
 import pytest
 
 from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault, Disconnected
-from dgz_cli.hw.modbus_rtu import (ModbusMaster, crc16, crc_ok, read_request, registers_to_ascii, to_signed,
-                                   with_crc, write_multiple_request, write_single_request)
+from dgz_cli.hw.modbus_rtu import (
+    ModbusMaster,
+    crc16,
+    crc_ok,
+    read_request,
+    registers_to_ascii,
+    to_signed,
+    with_crc,
+    write_multiple_request,
+    write_single_request,
+)
 
 
 def crc_bitwise(data: bytes) -> int:

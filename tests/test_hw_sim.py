@@ -46,7 +46,8 @@ def test_sim_is_deterministic():
     assert np.array_equal(runs[0], runs[1])
 
 
-@pytest.mark.skipif(not os.environ.get("DGZ_ASSET_ROOT"), reason="DGZ_ASSET_ROOT not set: vendor hand assets unavailable")
+@pytest.mark.skipif(not os.environ.get("DGZ_ASSET_ROOT"),
+                    reason="DGZ_ASSET_ROOT not set: vendor hand assets unavailable")
 @pytest.mark.parametrize("spec", ["leap", "inspire", "revo2"])
 def test_vendor_hands_in_sim(spec):
     with make_sim_driver(spec) as hand:

@@ -151,6 +151,39 @@ def bench_sim(
     sys.stdout.write(json.dumps(result, indent=2) + "\n")
 
 
+@app.command()
+def deploy(
+    hand: Optional[str] = typer.Option(None, "--hand", help="revo2, inspire, leap (hand files), a hand file path, or sim"),
+    port: Optional[str] = typer.Option(None, "--port", help="serial port (prefer /dev/serial/by-id/...), or sim"),
+    policy: str = typer.Option("scripted", "--policy", help="'scripted' or package.module:factory (called with the HandSpec)"),
+    object_points: Optional[Path] = typer.Option(None, "--object-points",
+                                                 help="object point cloud (.npy or 'x y z' lines), robot base frame"),
+    dry_run: bool = typer.Option(False, "--dry-run", help="connect and read only: never write to the hand"),
+    fake: bool = typer.Option(False, "--fake", help="start the hand's fake device on a pseudo-terminal and connect to it"),
+    yes: bool = typer.Option(False, "--yes", help="do not ask before the hand moves"),
+    log: Optional[Path] = typer.Option(None, "--log", help="write every step as JSON lines to this file"),
+    on_exit: str = typer.Option("hold", "--on-exit", help="hold or relax when the run ends or is stopped"),
+    replay: Optional[Path] = typer.Option(None, "--replay", help="play a step log back on the simulated hand and exit"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+) -> None:
+    """Run a grasp policy on a real hand (or its fake device, or the MuJoCo sim) with a safety filter."""
+    from dgz_cli.cli import deploy_cmd
+
+    raise typer.Exit(deploy_cmd.run(hand, port, policy, object_points, dry_run, fake, yes, log, on_exit, replay, out,
+                                    asset_root=asset_root))
+
+
+@bench_app.command("deploy")
+def bench_deploy(
+    hand: str = typer.Option("revo2", "--hand", help="revo2, inspire, leap (pty fake) or sim"),
+    steps: int = typer.Option(200, "--steps", min=1, help="control steps at 20 Hz"),
+) -> None:
+    """Control-loop timing at 20 Hz against a hand's fake device or the sim: mean period, p99 jitter."""
+    from dgz_cli.runtime import bench
+
+    sys.stdout.write(json.dumps(bench.run(hand, steps), indent=2) + "\n")
+
+
 @bench_app.command("onboard")
 def bench_onboard(
     hands: Optional[str] = typer.Option(None, "--hands", help="comma-separated shipped hands (default: all)"),

@@ -48,8 +48,8 @@ def _confirm(console: Console, what: str, yes: bool) -> None:
         raise DgzError("not confirmed: nothing moved", "answer 'y' to start, or use --dry-run to only read")
 
 
-def run(hand: str, port: str | None, policy: str, object_points: Path | None, dry_run: bool, fake: bool, yes: bool,
-        log: Path | None, on_exit: str, replay: Path | None, console: Console, *, rate_hz: float = 20.0,
+def run(hand: str | None, port: str | None, policy: str, object_points: Path | None, dry_run: bool, fake: bool,
+        yes: bool, log: Path | None, on_exit: str, replay: Path | None, console: Console, *, rate_hz: float = 20.0,
         grasp_steps: int = 130, lift_steps: int = 30, asset_root: str | None = None,
         allow_privileged: bool = False) -> int:
     from dgz_cli.hw.factory import SIM_HAND, load_hand, make_driver
@@ -57,7 +57,8 @@ def run(hand: str, port: str | None, policy: str, object_points: Path | None, dr
     from dgz_cli.runtime.mapping import start_pose
     from dgz_cli.runtime.policy import load_policy
     from dgz_cli.runtime.rate import InterruptGuard
-    from dgz_cli.runtime.steplog import StepLogger, replay as replay_log
+    from dgz_cli.runtime.steplog import StepLogger
+    from dgz_cli.runtime.steplog import replay as replay_log
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.io import load_spec
 
@@ -67,6 +68,8 @@ def run(hand: str, port: str | None, policy: str, object_points: Path | None, dr
                       f"{summary['spec']}: max tracking error {summary['max_tracking_error']:.4f} rad, final "
                       f"{summary['final_tracking_error']:.4f} rad (logged stop: {summary['logged_reason']})")
         return 0
+    if not hand:
+        raise DgzError("no --hand given", "name a hand: revo2, inspire, leap (hardware), sim, or a hand file path")
     if on_exit not in ("hold", "relax"):
         raise DgzError(f"--on-exit {on_exit!r} is not supported", "use --on-exit hold or --on-exit relax")
     simulated = hand == "sim" or port == "sim"
@@ -107,8 +110,8 @@ def run(hand: str, port: str | None, policy: str, object_points: Path | None, dr
             where = "fake device " + port if fake_dev else ("MuJoCo" if simulated else port)
             console.print(f"connected {escape(hand)} on {escape(where)}: {escape(info.summary())}")
             if not dry_run and not simulated:
-                _confirm(console, f"The hand will ramp to its start pose, then run policy '{policy}' for "
-                                  f"{grasp_steps} steps and hold ({on_exit} at exit).", yes)
+                _confirm(console, f"The hand on {port} will ramp slowly to its start pose, run policy '{policy}' "
+                                  f"for {grasp_steps} steps, then {on_exit} at the end.", yes)
             logger.header(hand=hand, spec=spec_ref, joints=driver.joint_names, nodes=[n.id for n in spec.nodes],
                           rate_hz=rate_hz, port=port or "sim", identity=info.identity, policy=policy,
                           dry_run=dry_run, on_exit=on_exit, arm="none", fake=bool(fake_dev))

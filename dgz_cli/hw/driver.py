@@ -51,6 +51,7 @@ class HandDriver(ABC):
     def connect(self) -> DeviceInfo:
         """Open the port and check the device's identity. Reads only: safe in a dry run."""
 
+    @abstractmethod
     def enable(self) -> None:
         """Write the configuration (modes, gains, limits) and switch the drive on. Idempotent."""
 

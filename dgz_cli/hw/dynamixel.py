@@ -13,7 +13,7 @@ import struct
 
 from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault
 from dgz_cli.hw.modbus_rtu import BusStats
-from dgz_cli.hw.serial_port import io_error
+from dgz_cli.hw.serial_port import IO_ERRORS, io_error
 
 HEADER = b"\xff\xff\xfd\x00"
 BROADCAST = 0xFE
@@ -75,13 +75,13 @@ class DynamixelBus:
         try:
             self.t.reset_input_buffer()
             self.t.write(pkt)
-        except OSError as exc:
+        except IO_ERRORS as exc:
             raise io_error(self.port, exc) from None
 
     def _recv(self, n: int) -> bytes:
         try:
             return self.t.read(n)
-        except OSError as exc:
+        except IO_ERRORS as exc:
             raise io_error(self.port, exc) from None
 
     def _timeout(self, dxl_id: int, got: bytes) -> BusTimeout:

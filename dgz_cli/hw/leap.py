@@ -64,7 +64,7 @@ class LeapDriver(HandDriver):
                     self.bus.fast_sync_read(PRESENT, 10, self.ids)
                     self.fast = True
                 except (*TRANSIENT, IndexError):
-                    self.ser.reset_input_buffer()
+                    self.fast = False  # older firmware: keep sync-read
         except BaseException:
             self.close()
             raise

@@ -10,7 +10,7 @@ import struct
 from dataclasses import dataclass, field
 
 from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault
-from dgz_cli.hw.serial_port import io_error
+from dgz_cli.hw.serial_port import IO_ERRORS, io_error
 
 READ_HOLDING, READ_INPUT, WRITE_SINGLE, WRITE_MULTIPLE = 0x03, 0x04, 0x06, 0x10
 EXCEPTIONS = {1: "illegal function", 2: "illegal data address", 3: "illegal data value",
@@ -122,7 +122,7 @@ class ModbusMaster:
     def _recv(self, n: int) -> bytes:
         try:
             return self.t.read(n)
-        except OSError as exc:  # serial.SerialException derives from OSError
+        except IO_ERRORS as exc:  # serial.SerialException derives from OSError
             raise io_error(self.port, exc) from None
 
     def _timeout(self, slave: int, address: int, got: bytes) -> BusTimeout:
@@ -136,7 +136,7 @@ class ModbusMaster:
         try:
             self.t.reset_input_buffer()  # drop leftovers of an earlier garbled reply
             self.t.write(request)
-        except OSError as exc:
+        except IO_ERRORS as exc:
             raise io_error(self.port, exc) from None
         head = self._recv(2)
         if len(head) < 2:

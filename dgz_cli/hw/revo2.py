@@ -38,7 +38,8 @@ class Revo2Driver(ModbusHand):
             if self.settings.skus and sku not in self.settings.skus:
                 raise IdentityError(f"{self.port}: device reports SKU {sku}, not one of {self.settings.skus}",
                                     "is this a Revo2? otherwise fix revo2.skus in the hand file")
-            firmware = registers_to_ascii(self._identify("the firmware version", lambda: bus.read_input(s, FIRMWARE, 10)))
+            firmware = registers_to_ascii(self._identify("the firmware version",
+                                                         lambda: bus.read_input(s, FIRMWARE, 10)))
             serial = registers_to_ascii(self._identify("the serial number", lambda: bus.read_input(s, SERIAL, 10)))
             lim = to_signed(self._identify("the position limits", lambda: bus.read_holding(s, MIN_POS, 12)))
             self.limits_deg = list(zip(lim[:6], lim[6:]))

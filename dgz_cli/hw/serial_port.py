@@ -6,6 +6,13 @@ import errno
 
 from dgz_cli.hw.errors import Disconnected, HardwareError
 
+try:  # pyserial's flush/reset calls raise termios.error (not an OSError) when the device vanished
+    import termios
+
+    IO_ERRORS: tuple[type[BaseException], ...] = (OSError, termios.error)
+except ImportError:  # pragma: no cover - non-POSIX
+    IO_ERRORS = (OSError,)
+
 PORT_HINT = "list adapters with `ls -l /dev/serial/by-id/` and prefer those stable paths"
 
 
@@ -25,7 +32,8 @@ def open_serial(port: str, baudrate: int, timeout: float, bytesize: int = 8, par
             raise HardwareError(f"{port}: no such serial port", f"is the hand plugged in? {PORT_HINT}") from None
         if code == errno.EACCES or "Permission denied" in text:
             raise HardwareError(f"{port}: permission denied",
-                                "add yourself to the 'dialout' group (sudo usermod -aG dialout $USER) and log in again") from None
+                                "add yourself to the 'dialout' group (sudo usermod -aG dialout $USER) "
+                                "and log in again") from None
         if code == errno.EAGAIN or "exclusively lock" in text:
             raise HardwareError(f"{port}: port is in use by another program",
                                 "close the other program (another dgz, a vendor GUI, ModemManager) and retry") from None

@@ -71,13 +71,14 @@ class RunResult:
 
 
 class Runner:
-    def __init__(self, driver: HandDriver, spec: HandSpec, policy, cfg: RunConfig = RunConfig(), builder=None,
+    def __init__(self, driver: HandDriver, spec: HandSpec, policy, cfg: RunConfig | None = None, builder=None,
                  logger: StepLogger | None = None, guard: InterruptGuard | None = None, context: dict | None = None,
                  clock=time.monotonic, sleep=time.sleep) -> None:
+        cfg = cfg or RunConfig()
         if cfg.on_exit not in ("hold", "relax"):
             raise DgzError(f"--on-exit {cfg.on_exit!r} is not supported", "use hold or relax")
         self.driver, self.spec, self.policy, self.cfg = driver, spec, policy, cfg
-        self.builder = builder or ProprioObservation()
+        self.builder = builder or getattr(policy, "observation_builder", None) or ProprioObservation()
         self.log = logger or StepLogger(None)
         self.guard = guard or InterruptGuard()
         self.context = context or {}

@@ -4,7 +4,8 @@ A policy is any object with ``act(observation) -> np.ndarray`` of ``6 + 3·N_nod
 :mod:`dgz_cli.runtime.mapping`), optionally ``reset()``, ``privileged_inputs`` (a set of names; policies
 that need "contact" or "force" are refused on hardware) and ``normalized_actions`` (True when outputs
 are in [-1, 1] and must be multiplied by the action scales 0.01 wrist / 0.015 fingers). Load one by name
-(``scripted``) or by reference ``package.module:factory``; the factory is called with the HandSpec.
+(``scripted``) or by reference ``package.module:factory``; the factory is called with the HandSpec. A policy
+that needs its own observations carries an ``observation_builder`` attribute (used instead of the default).
 """
 
 from __future__ import annotations
@@ -107,7 +108,8 @@ def load_policy(ref: str, spec: HandSpec, allow_privileged: bool = False) -> Any
         try:
             factory = getattr(importlib.import_module(module), attr)
         except (ImportError, AttributeError) as exc:
-            raise DgzError(f"cannot load policy '{ref}': {exc}", "check the module path and that it is installed") from None
+            raise DgzError(f"cannot load policy '{ref}': {exc}",
+                           "check the module path and that it is installed") from None
         policy = factory(spec)
     if not callable(getattr(policy, "act", None)):
         raise DgzError(f"policy '{ref}' has no act(observation) method", "see docs/deploy.md (policies)")

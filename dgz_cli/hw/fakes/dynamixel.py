@@ -9,8 +9,20 @@ from __future__ import annotations
 
 import struct
 
-from dgz_cli.hw.dynamixel import (BROADCAST, FAST_SYNC_READ, HEADER, PING, READ, STATUS, SYNC_READ, SYNC_WRITE,
-                                  WRITE, crc16, packet, unstuff)
+from dgz_cli.hw.dynamixel import (
+    BROADCAST,
+    FAST_SYNC_READ,
+    HEADER,
+    PING,
+    READ,
+    STATUS,
+    SYNC_READ,
+    SYNC_WRITE,
+    WRITE,
+    crc16,
+    packet,
+    unstuff,
+)
 from dgz_cli.hw.fakes.base import PtyFake, approach
 
 MODEL_XC330_T288 = 1220

@@ -1,0 +1,77 @@
+"""Checkpoints: weights as safetensors (no pickle, so loading never runs code) + a YAML of the run.
+
+A checkpoint directory holds ``model.safetensors`` and ``checkpoint.yaml`` (full config, iteration,
+training hands with their spec hashes, git revision, metrics). Both are written atomically.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import tempfile
+from pathlib import Path
+
+import yaml
+
+from dgz_cli.spec.errors import DgzError
+
+
+def git_revision(repo: Path | None = None) -> str | None:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo or Path(__file__).resolve().parents[2],
+                             capture_output=True, text=True, timeout=5)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None if out.returncode == 0 else None
+
+
+def spec_hash(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _atomic_bytes(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save(directory: Path, tensors: dict, meta: dict) -> None:
+    """Write ``tensors`` (name → torch.Tensor) and ``meta`` (plain YAML-able dict) into ``directory``."""
+    from safetensors.torch import save
+
+    directory = Path(directory)
+    _atomic_bytes(directory / "model.safetensors", save({k: v.detach().contiguous().cpu() for k, v in tensors.items()}))
+    _atomic_bytes(directory / "checkpoint.yaml", yaml.safe_dump(meta, sort_keys=False).encode())
+
+
+def load(directory: Path) -> tuple[dict, dict]:
+    """(tensors, meta). Never unpickles: safetensors + yaml.safe_load."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    directory = Path(directory)
+    weights, meta_file = directory / "model.safetensors", directory / "checkpoint.yaml"
+    if not weights.is_file() or not meta_file.is_file():
+        raise DgzError(f"{directory}: not a dgz checkpoint (needs model.safetensors and checkpoint.yaml)",
+                       "point --policy at a folder written by `dgz train` (e.g. runs/NAME or policies/NAME)")
+    try:
+        tensors = load_file(str(weights))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise DgzError(f"{weights}: unreadable weights ({exc})", "the file is damaged; use an earlier checkpoint") from None
+    try:
+        meta = yaml.safe_load(meta_file.read_text())
+    except yaml.YAMLError as exc:
+        raise DgzError(f"{meta_file}: malformed YAML ({exc})", "restore the file from the run directory") from None
+    if not isinstance(meta, dict) or "policy" not in meta:
+        raise DgzError(f"{meta_file}: missing 'policy' section", "is this a dgz checkpoint?")
+    return tensors, meta
