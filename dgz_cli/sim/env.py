@@ -13,6 +13,7 @@ statistics are in ``info["episode"]``). A MuJoCo instability resets only that sl
 
 from __future__ import annotations
 
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -48,6 +49,7 @@ class GraspEnv:
         self.pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
         self.chunks = [list(range(self.B))[k::threads] for k in range(max(1, threads))]
         self.instabilities = 0
+        self.timing = {"physics_s": 0.0, "env_other_s": 0.0}  # wall-clock split of step(), accumulated
         self.t = np.zeros(self.B, dtype=np.int64)
         self.episodes = np.zeros(self.B, dtype=np.int64)
         self.targets = np.zeros((self.B, self.L))
@@ -140,6 +142,7 @@ class GraspEnv:
 
     # ---------------------------------------------------------------- step
     def step(self, action: np.ndarray):
+        t_start = time.perf_counter()
         cfg, B = self.cfg, self.B
         a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), -1.0, 1.0)
         wrist, fingers = a[:, :6], a[:, 6:]
@@ -169,7 +172,10 @@ class GraspEnv:
         self.wrist_target = np.clip(self.wrist_target + delta, wq - bound, wq + bound)
         self.wrist_target[:, :3] += np.einsum("bji,bj->bi", mounts, lift_world)  # the scripted lift is not capped
 
+        t_phys = time.perf_counter()
         ok = self._physics()
+        physics = time.perf_counter() - t_phys
+        self.timing["physics_s"] += physics
         self.t += 1
         force = self.buf["force"].copy()
         contact = force > 1e-6
@@ -201,6 +207,7 @@ class GraspEnv:
             fresh = self._observe()[0]
             for key in ("nodes", "global"):
                 obs[key][finished] = fresh[key][finished]
+        self.timing["env_other_s"] += time.perf_counter() - t_start - physics
         return obs, reward.astype(np.float32), done & ok, ~ok, info
 
     def _z0(self) -> np.ndarray:

@@ -1,0 +1,23 @@
+"""Typed, frozen training configuration (`dgz train`); saved verbatim into every checkpoint."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class TrainConfig(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    hands: tuple[str, ...] = ("allegro", "shadow", "schunk_svh", "ability")
+    objects: str = Field("ycb45", description="ycb45, primitives, or comma-separated object names")
+    repeat: int = Field(3, ge=1, description="N_env = hands × objects × repeat (paper: 3)")
+    preset: str = "compact"
+    ablation: Literal["full", "no_physical", "early_fusion", "no_primitives", "no_mask"] = "full"
+    iterations: int = Field(100, ge=1)
+    steps_per_env: int = Field(130, ge=1, description="transitions per env per PPO update (paper: 130)")
+    checkpoint_every: int = Field(5, ge=1, description="iterations between checkpoints")
+    seed: int = 0
+    threads: int = Field(2, ge=1, description="physics worker threads")
+    torch_threads: int = Field(2, ge=1)
