@@ -99,6 +99,30 @@ def schema(overrides: bool = typer.Option(False, "--overrides", help="print the 
 
 
 @app.command()
+def train(
+    hands: str = typer.Option("allegro,shadow,schunk_svh,ability", "--hands", help="comma-separated training hands"),
+    objects: str = typer.Option("ycb45", "--objects", help="ycb45, primitives, or comma-separated object names"),
+    preset: str = typer.Option("compact", "--preset", help="network size: compact (CPU) or paper"),
+    ablation: str = typer.Option("full", "--ablation",
+                                 help="full, no_physical, early_fusion, no_primitives or no_mask (Table I variants)"),
+    out_dir: Path = typer.Option(..., "--out", help="run directory (checkpoints, logs, curve)"),
+    iterations: int = typer.Option(100, "--iterations", min=1, help="PPO updates"),
+    repeat: int = typer.Option(3, "--repeat", min=1, help="N_env = hands × objects × repeat"),
+    steps: int = typer.Option(130, "--steps", min=1, help="transitions per env per update"),
+    checkpoint_every: int = typer.Option(5, "--checkpoint-every", min=1, help="iterations between checkpoints"),
+    seed: int = typer.Option(0, "--seed"),
+    resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+) -> None:
+    """Train one MAGCN policy on several hands with PPO (paper hyper-parameters)."""
+    from dgz_cli.cli import train_cmd
+
+    cfg = dict(hands=tuple(h for h in hands.split(",") if h), objects=objects, preset=preset, ablation=ablation,
+               iterations=iterations, repeat=repeat, steps_per_env=steps, checkpoint_every=checkpoint_every, seed=seed)
+    raise typer.Exit(train_cmd.run(cfg, out_dir, resume, asset_root, out))
+
+
+@app.command()
 def scene(
     hand: str = typer.Option(..., "--hand", help="shipped hand name or spec file"),
     obj: str = typer.Option(..., "--object", help="object: a YCB-45 folder name (025_mug) or sphere/box/cylinder/capsule"),

@@ -20,4 +20,4 @@ class TrainConfig(BaseModel):
     checkpoint_every: int = Field(5, ge=1, description="iterations between checkpoints")
     seed: int = 0
     threads: int = Field(2, ge=1, description="physics worker threads")
-    torch_threads: int = Field(2, ge=1)
+    torch_threads: int = Field(1, ge=1, description="torch threads for the PPO update (rollouts always use 1)")
