@@ -137,19 +137,26 @@ def scene(
 
 @app.command("eval")
 def evaluate(
-    policy: str = typer.Option("scripted", "--policy", help="'scripted' (the spec-only baseline)"),
-    hand: List[str] = typer.Option(..., "--hand", help="shipped hand name or spec file (repeatable)"),
+    policy: str = typer.Option("scripted", "--policy", help="'scripted' (the spec-only baseline), a run/policy "
+                               "directory, or a name under policies/"),
+    hand: Optional[List[str]] = typer.Option(None, "--hand", help="shipped hand name or spec file (repeatable)"),
     objects: str = typer.Option("ycb45", "--objects", help="ycb45, primitives, or comma-separated object names"),
     trials: int = typer.Option(25, "--trials", min=1, help="episodes per (hand, object)"),
     seed: int = typer.Option(0, "--seed", help="randomization seed"),
     zero_shot: bool = typer.Option(False, "--zero-shot", help="refuse hands the policy was trained on"),
     json_out: Optional[Path] = typer.Option(None, "--json", help="write results as JSON"),
     csv_out: Optional[Path] = typer.Option(None, "--csv", help="write per-episode rows as CSV"),
+    table: Optional[List[Path]] = typer.Option(None, "--table", help="print Table I from `--json` result files "
+                                               "(repeatable) instead of evaluating"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Success rate per hand and object under the protocol (lift, hold), with both cores."""
     from dgz_cli.cli import sim_cmd
 
+    if table:
+        raise typer.Exit(sim_cmd.table(table, out))
+    if not hand:
+        raise DgzError("no --hand given", "name one or more hands, e.g. --hand leap --hand inspire")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out))

@@ -38,13 +38,24 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.io import atomic_write, load_spec
 
-    if policy != "scripted":
-        raise DgzError(f"--policy '{policy}': this dgz evaluates only the scripted baseline",
-                       "use --policy scripted (trained MAGCN checkpoints are not part of this release)")
+    make_policy, meta = _policy_factory(policy)
     if zero_shot:
-        raise DgzError("--zero-shot needs a trained policy's list of training hands", "drop --zero-shot for --policy scripted")
-    cfg = EnvConfig()
+        if meta is None:
+            raise DgzError("--zero-shot needs a trained policy's list of training hands",
+                           "drop --zero-shot for --policy scripted")
+        seen = sorted(set(meta["training_hands"]) & {Path(h).stem for h in hands})
+        if seen:
+            raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
+                           f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
+    cfg = EnvConfig(action_mode=meta["policy"]["action_mode"]) if meta else EnvConfig()
     specs = [load_spec(resolve_spec(h)) for h in hands]
+    if meta is not None:
+        from dgz_cli.rl.checkpoint import spec_hash
+
+        for h in hands:
+            old_hash = meta["training_hands"].get(Path(h).stem)
+            if old_hash is not None and old_hash != spec_hash(resolve_spec(h)):
+                console.print(f"[yellow]warning:[/] the spec of training hand {h} changed since {policy} was trained")
     objs = resolve_objects(objects, asset_root)
     pairs = [(s, o) for s in specs for o in objs]
     t0 = time.perf_counter()
@@ -52,13 +63,10 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
                   console=console, transient=True) as bar:
         task = bar.add_task(f"{policy}: {len(specs)} hand(s) × {len(objs)} object(s) × {trials} trials",
                             total=len(pairs) * trials)
-        from dgz_cli.sim.scripted import ScriptedGrasp
-
         records: list[dict] = []
         for spec in specs:  # one env per hand keeps memory flat (one scene per object, not per pair)
             before = len(records)
-            records += run_episodes([(spec, o) for o in objs], lambda env: ScriptedGrasp(env.N, env.grasp_offset),
-                                    trials, cfg, seed, asset_root,
+            records += run_episodes([(spec, o) for o in objs], make_policy, trials, cfg, seed, asset_root,
                                     progress=lambda done, total: bar.update(task, completed=before + done))
     summary = summarize(records)
     protocol = dict(lift_height_m=cfg.lift_height, hold_s=cfg.hold_s, success_fraction=cfg.success_fraction,
@@ -74,6 +82,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     console.print(f"[dim]{len(records)} episodes in {time.perf_counter() - t0:.0f} s[/]")
     if json_out is not None:
         report = dict(policy=policy, protocol=protocol,
+                      training_hands=sorted(meta["training_hands"]) if meta else [],
                       hands={k: dict(success_rate=v["success_rate"], episodes=v["episodes"], objects=v["objects"])
                              for k, v in summary.items()})
         atomic_write(json_out, json.dumps(report, indent=2) + "\n")
@@ -84,4 +93,74 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         for r in records:
             w.writerow([r["hand"], r["object"], r["trial"], int(r["success"]), f"{r['max_rise']:.4f}", f"{r['return_']:.3f}"])
         atomic_write(csv_out, buf.getvalue())
+    return 0
+
+
+class _Trained:
+    """A checkpoint's MAGCN acting deterministically (the mean action), one torch thread."""
+
+    def __init__(self, model) -> None:
+        self.model = model
+
+    def reset(self, mask) -> None:
+        pass
+
+    def act(self, obs):
+        import torch
+
+        from dgz_cli.policy.graph import to_tensors
+
+        torch.set_num_threads(1)
+        with torch.no_grad():
+            return self.model(to_tensors(obs))[0].numpy()
+
+
+def _policy_factory(policy: str):
+    """'scripted' → (factory, None); a checkpoint dir or a policies/ name → (factory, meta)."""
+    if policy == "scripted":
+        from dgz_cli.sim.scripted import ScriptedGrasp
+
+        return (lambda env: ScriptedGrasp(env.N, env.grasp_offset)), None
+    from dgz_cli.rl.runner import load_policy
+
+    path = Path(policy)
+    if not path.exists() and (Path(__file__).resolve().parents[2] / "policies" / policy).is_dir():
+        path = Path(__file__).resolve().parents[2] / "policies" / policy
+    model, meta = load_policy(path)
+    return (lambda env: _Trained(model)), meta
+
+
+def table(files: list[Path], console: Console) -> int:
+    """Paper Table I layout from `dgz eval --json` files: training hands | unseen hands | averages."""
+    rows = []
+    for f in files:
+        try:
+            data = json.loads(Path(f).read_text())
+            hands = data["hands"]
+        except (OSError, ValueError, KeyError, TypeError):
+            raise DgzError(f"{f}: not a `dgz eval --json` result", "write one with dgz eval ... --json FILE") from None
+        rows.append((Path(f).stem, data.get("policy", "?"), set(data.get("training_hands", [])), hands))
+    seen_cols = sorted({h for _, _, tr, hs in rows for h in hs if h in tr})
+    unseen_cols = sorted({h for _, _, tr, hs in rows for h in hs if h not in tr})
+    t = Table(title="success rate (Table I layout)")
+    t.add_column("policy")
+    for h in seen_cols:
+        t.add_column(f"{h} (train)", justify="right")
+    for h in unseen_cols:
+        t.add_column(f"{h} (unseen)", justify="right")
+    t.add_column("seen avg", justify="right")
+    t.add_column("unseen avg", justify="right")
+    for name, policy, trained, hs in rows:
+        mine_seen = [h for h in seen_cols if h in hs and h in trained]
+        mine_unseen = [h for h in unseen_cols if h in hs and h not in trained]
+
+        def cell(h: str, cols: list[str]) -> str:
+            return f"{hs[h]['success_rate']:.2f}" if h in cols else "—"
+
+        def avg(cols: list[str]) -> str:
+            return f"{sum(hs[h]['success_rate'] for h in cols) / len(cols):.2f}" if cols else "—"
+
+        t.add_row(f"{name} ({policy})", *[cell(h, mine_seen) for h in seen_cols],
+                  *[cell(h, mine_unseen) for h in unseen_cols], avg(mine_seen), avg(mine_unseen))
+    console.print(t)
     return 0

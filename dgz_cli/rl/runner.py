@@ -146,6 +146,7 @@ class Trainer:
         phys0, other0 = env.timing["physics_s"], env.timing["env_other_s"]
         forward_s = 0.0
         episodes: list[dict] = []
+        reward_sum = 0.0
         self.model.eval()
         # Small rollout batches run best on one torch thread: the physics workers own the cores then,
         # and OpenMP threads spinning against them cost 100× (measured). The update gets them back.
@@ -161,6 +162,7 @@ class Trainer:
             # the fixed-length episode end is a termination (no bootstrap); an unstable slot is truncated
             self.storage.add(obs_t, reward=reward, terminated=terminated, truncated=truncated, **out)
             episodes += list(info["episode"].values())
+            reward_sum += float(reward.mean())
             obs = next_obs
         tf = time.perf_counter()
         last_value = self.ppo.value(to_tensors(obs))
@@ -176,6 +178,7 @@ class Trainer:
                    physics_s=round(env.timing["physics_s"] - phys0, 2), env_other_s=round(env.timing["env_other_s"] - other0, 2),
                    policy_forward_s=round(forward_s, 2), ppo_update_s=round(update_s, 2),
                    episodes=len(episodes), instabilities=env.instabilities,
+                   mean_step_reward=reward_sum / self.cfg.steps_per_env,
                    success_rate=float(np.mean([e["success"] for e in episodes])) if episodes else None,
                    mean_return=float(np.mean([e["return_"] for e in episodes])) if episodes else None,
                    **{k: float(np.mean([e[k] for e in episodes])) if episodes else None
