@@ -13,6 +13,11 @@ from rich.console import Console
 from dgz_cli import __version__
 from dgz_cli.spec.errors import DgzError
 
+try:  # typer ≥ 0.2x vendors click; older typer uses click directly
+    from typer import TyperException as _UsageError
+except ImportError:  # pragma: no cover
+    from click import ClickException as _UsageError
+
 app = typer.Typer(no_args_is_help=True, pretty_exceptions_enable=False, add_completion=False,
                   help="dgz — DexGrasp-Zero: onboard any dexterous hand from its URDF and grasp with one policy.")
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that print JSON (throughput, latency, peak memory).")
@@ -215,6 +220,23 @@ def bench_deploy(
     sys.stdout.write(json.dumps(bench.run(hand, steps), indent=2) + "\n")
 
 
+@bench_app.command("policy")
+def bench_policy(
+    preset: str = typer.Option("compact", "--preset", help="compact or paper"),
+    nodes: int = typer.Option(20, "--nodes", min=2, help="graph size for the synthetic graphs"),
+    threads: int = typer.Option(1, "--threads", min=1, help="torch threads"),
+    as_json: bool = typer.Option(False, "--json", help="print only the JSON"),
+) -> None:
+    """Batch-1 forward latency, forward graphs/s at batch 1024, PPO update samples/s, env+policy steps/s."""
+    from dgz_cli.bench import policy_bench
+
+    result = policy_bench.run(preset, nodes, threads)
+    if not as_json:
+        out.print(f"{preset}: batch-1 forward {result['batch1_forward_ms']} ms, {result['forward_graphs_per_s_b1024']} "
+                  f"graphs/s at 1024, PPO {result['ppo_update_samples_per_s']} samples/s")
+    sys.stdout.write(json.dumps(result, indent=2) + "\n")
+
+
 @bench_app.command("onboard")
 def bench_onboard(
     hands: Optional[str] = typer.Option(None, "--hands", help="comma-separated shipped hands (default: all)"),
@@ -247,15 +269,11 @@ def main() -> None:
         sys.exit(130)
     except typer.Exit as exc:
         sys.exit(exc.exit_code)
-    except Exception as exc:  # click usage errors and aborts
-        import click
-
-        if isinstance(exc, click.exceptions.ClickException):
-            exc.show()
-            sys.exit(exc.exit_code)
-        if isinstance(exc, click.exceptions.Abort):
-            sys.exit(1)
-        raise
+    except typer.Abort:
+        sys.exit(1)
+    except _UsageError as exc:  # bad options/arguments: typer prints usage and the problem
+        exc.show()
+        sys.exit(exc.exit_code)
 
 
 if __name__ == "__main__":
