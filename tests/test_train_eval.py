@@ -13,7 +13,7 @@ import torch
 from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.runner import Trainer, load_policy
 
-SMOKE = dict(hands=("dgz_tri",), objects="sphere,box", repeat=2, steps_per_env=40, checkpoint_every=2, seed=0)
+SMOKE = dict(hands=("dgz_tri",), objects="sphere,box", repeat=2, steps_per_env=190, checkpoint_every=5, seed=0)
 
 
 def _dgz(*args, cwd):
@@ -23,7 +23,7 @@ def _dgz(*args, cwd):
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
-    trainer = Trainer(TrainConfig(iterations=12, **SMOKE), out, None)
+    trainer = Trainer(TrainConfig(iterations=10, **SMOKE), out, None)
     trainer.train()
     return out, trainer.history
 
@@ -38,7 +38,7 @@ def test_training_improves_the_return(run_dir):
 def test_checkpoint_roundtrip_gives_identical_actions(run_dir, tmp_path):
     out, _ = run_dir
     model, meta = load_policy(out)
-    assert meta["iteration"] == 12 and set(meta["training_hands"]) == {"dgz_tri"}
+    assert meta["iteration"] == 10 and set(meta["training_hands"]) == {"dgz_tri"}
     assert (out / "model.safetensors").read_bytes()[:8] != b"\x80\x04\x95"  # not a pickle
     from dgz_cli.sim.env import GraspEnv
     from dgz_cli.sim.objects import resolve_objects
@@ -61,13 +61,13 @@ def test_resume_continues_from_the_last_checkpoint(run_dir, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     saved, _ = load_policy(copy)
-    trainer = Trainer(TrainConfig(iterations=13, **SMOKE), copy, None, resume=True)
-    assert trainer.iteration == 12 and len(trainer.history) == 12
+    trainer = Trainer(TrainConfig(iterations=11, **SMOKE), copy, None, resume=True)
+    assert trainer.iteration == 10 and len(trainer.history) == 10
     for k, v in saved.state_dict().items():
         assert torch.equal(trainer.model.state_dict()[k], v)
     assert trainer.ppo.optimizer.state_dict()["state"], "optimizer state restored"
     trainer.train()
-    assert trainer.iteration == 13 and [h["iteration"] for h in trainer.history] == list(range(1, 14))
+    assert trainer.iteration == 11 and [h["iteration"] for h in trainer.history] == list(range(1, 12))
 
 
 def test_resume_refuses_another_preset(run_dir, tmp_path):

@@ -20,6 +20,7 @@ from dgz_cli.policy.magcn import MAGCN
 from dgz_cli.policy.presets import get_preset
 from dgz_cli.rl import checkpoint
 from dgz_cli.rl.config import TrainConfig
+from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO, PPOConfig
 from dgz_cli.rl.storage import RolloutStorage
 from dgz_cli.sim.config import EnvConfig
@@ -80,6 +81,7 @@ class Trainer:
         self.model = MAGCN(model_config(cfg))
         self.ppo = PPO(self.model, PPOConfig())
         self.storage: RolloutStorage | None = None
+        self.reward_norm = ReturnNormalizer(self.env.B, self.ppo.cfg.gamma)
         self.iteration = 0
         self.history: list[dict] = []
         if resume:
@@ -100,6 +102,7 @@ class Trainer:
             training_hands={p.stem: checkpoint.spec_hash(p) for p in self.spec_paths},
             git_revision=checkpoint.git_revision(),
             learning_rate=float(self.ppo.learning_rate),
+            reward_normalizer=self.reward_norm.state(),
             last=self.history[-1] if self.history else None,
         )
 
@@ -121,6 +124,8 @@ class Trainer:
         self.ppo.load_optimizer_tensors({k[6:]: v for k, v in tensors.items() if k.startswith("optim.")},
                                         meta.get("learning_rate"))
         self.iteration = int(meta["iteration"])
+        if meta.get("reward_normalizer"):
+            self.reward_norm.load(meta["reward_normalizer"])
         hist = self.out / "history.jsonl"
         if hist.exists():
             self.history = [json.loads(line) for line in hist.read_text().splitlines() if line.strip()]
@@ -160,7 +165,8 @@ class Trainer:
                 self.storage = RolloutStorage(self.cfg.steps_per_env, env.B, obs_t, env.action_dim, seed=self.cfg.seed)
             next_obs, reward, terminated, truncated, info = env.step(out["action"].numpy())
             # the fixed-length episode end is a termination (no bootstrap); an unstable slot is truncated
-            self.storage.add(obs_t, reward=reward, terminated=terminated, truncated=truncated, **out)
+            scaled = self.reward_norm(reward.astype(np.float64), terminated | truncated)
+            self.storage.add(obs_t, reward=scaled, terminated=terminated, truncated=truncated, **out)
             episodes += list(info["episode"].values())
             reward_sum += float(reward.mean())
             obs = next_obs

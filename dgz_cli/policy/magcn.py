@@ -1,0 +1,164 @@
+"""MAGCN: Morphology-Aligned Graph Convolutional Network actor-critic (paper Sec. III-C-3, Supp. S3).
+
+    E_p   = φ_p(X_phys)                      Linear(27→32) · LeakyReLU · Linear(32→d_p)       (B, N, d_p)
+    H^(0) = X_node                                                                              (B, N, 23)
+    H^(l) = ReLU(LayerNorm(Â [H^(l-1) ‖ E_p] W^(l))),  l = 1..L                                (B, N, w_l)
+    E_g   = φ_g(x_g)                         Linear(16→256) · LeakyReLU                         (B, 256)
+    wrist = φ_dec,wrist([E_g ‖ e_wrist])     Linear(·→128) · LeakyReLU · Linear(128→6)          (B, 6)
+    α_i   = φ_dec,node([E_node[i] ‖ M[i]])   Linear(·→128) · LeakyReLU · Linear(128→3)          (B, N, 3)
+    V     = φ_v([E_g ‖ mean_valid E_node])   Linear(·→128) · ReLU · Linear(128→1)               (B,)
+
+Ablations: ``use_physical=False`` drops E_p, ``early_fusion`` concatenates E_p at layer 1 only,
+``use_mask=False`` feeds zeros for M. Padded nodes have zero rows/columns in Â and zeroed embeddings, so
+they never influence valid outputs; their action dims are zero in the mean and excluded from log-probs.
+The Gaussian policy has a learned state-independent log-std: 6 wrist values + 3 per-primitive values
+shared by all nodes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+from dgz_cli.policy.graph import COL_WRIST, action_valid, masked_mean, normalized_adjacency
+from dgz_cli.policy.presets import MagcnConfig
+
+Obs = dict[str, torch.Tensor]
+
+
+def _mlp(i: int, h: int, o: int, act: type[nn.Module], out_gain: float) -> nn.Sequential:
+    net = nn.Sequential(nn.Linear(i, h), act(), nn.Linear(h, o))
+    nn.init.orthogonal_(net[2].weight, gain=out_gain)
+    nn.init.zeros_(net[2].bias)
+    return net
+
+
+class MAGCN(nn.Module):
+    def __init__(self, cfg: MagcnConfig = MagcnConfig()) -> None:
+        super().__init__()
+        self.cfg = cfg
+        p = cfg.phys_out if cfg.use_physical else 0
+        self.phys = (nn.Sequential(nn.Linear(cfg.phys_dim, cfg.phys_hidden), nn.LeakyReLU(),
+                                   nn.Linear(cfg.phys_hidden, cfg.phys_out)) if cfg.use_physical else None)
+        ins = [cfg.node_dim, *cfg.gcn_widths[:-1]]
+        self.fuse = [cfg.use_physical and (l == 0 or not cfg.early_fusion) for l in range(cfg.num_layers)]
+        # W^(l) has no bias: the LayerNorm's shift plays that role (a bias inside Â(·) would be degree-scaled).
+        self.gcn = nn.ModuleList(nn.Linear(i + (p if f else 0), o, bias=False)
+                                 for i, o, f in zip(ins, cfg.gcn_widths, self.fuse))
+        self.norms = nn.ModuleList(nn.LayerNorm(o) for o in cfg.gcn_widths)
+        self.glob = nn.Sequential(nn.Linear(cfg.global_dim, cfg.global_hidden), nn.LeakyReLU())
+        d = cfg.gcn_widths[-1]
+        self.wrist_head = _mlp(cfg.global_hidden + d, cfg.head_hidden, cfg.wrist_dim, nn.LeakyReLU, 0.01)
+        self.node_head = _mlp(d + cfg.n_prim, cfg.head_hidden, cfg.n_prim, nn.LeakyReLU, 0.01)
+        self.value_head = _mlp(cfg.global_hidden + d, cfg.value_hidden, 1, nn.ReLU, 1.0)
+        self.log_std_wrist = nn.Parameter(torch.full((cfg.wrist_dim,), cfg.init_log_std))
+        self.log_std_prim = nn.Parameter(torch.full((cfg.n_prim,), cfg.init_log_std))
+
+    # ------------------------------------------------------------------ encoder
+    def encode(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor]:
+        """Return (E_g (B, global_hidden), E_node (B, N, w_L)); padded node rows are zero."""
+        valid = obs["node_valid"]
+        vf = valid.to(obs["nodes"].dtype)[..., None]
+        ahat = normalized_adjacency(obs["adjacency"], valid)
+        ep = self.phys(obs["physical"]) if self.phys is not None else None
+        h = obs["nodes"]
+        for lin, norm, fuse in zip(self.gcn, self.norms, self.fuse):
+            z = torch.cat([h, ep], dim=-1) if fuse else h
+            # Padded rows become ReLU(LN(0)) here but Â has zero columns for them, so they never mix into
+            # valid rows; they are zeroed once at the end (cheaper than masking every layer).
+            h = torch.relu_(norm(torch.bmm(ahat, lin(z))))
+        return self.glob(obs["global"]), h * vf
+
+    def wrist_embedding(self, obs: Obs, h: torch.Tensor) -> torch.Tensor:
+        """(B, w_L): mean embedding of the wrist-type node(s); masked mean of all nodes if a graph has none."""
+        w = obs["nodes"][..., COL_WRIST] * obs["node_valid"].to(h.dtype)  # (B, N)
+        cnt = w.sum(-1, keepdim=True)
+        e = torch.bmm((w / torch.where(cnt > 0, cnt, torch.ones_like(cnt))).unsqueeze(1), h).squeeze(1)
+        return torch.where(cnt > 0, e, masked_mean(h, obs["node_valid"]))
+
+    # ------------------------------------------------------------------ heads
+    def forward(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """obs (see :mod:`dgz_cli.policy.graph`) → mean (B, 6+3N), log_std (B, 6+3N), value (B,).
+
+        Mean and log_std are zero on padded nodes' action dims.
+        """
+        eg, h = self.encode(obs)
+        b, n, _ = h.shape
+        valid = obs["node_valid"]
+        m = obs["mask"] if self.cfg.use_mask else torch.zeros_like(obs["mask"])
+        wrist = self.wrist_head(torch.cat([eg, self.wrist_embedding(obs, h)], dim=-1))
+        alpha = self.node_head(torch.cat([h, m], dim=-1)) * valid.to(h.dtype)[..., None]
+        mean = torch.cat([wrist, alpha.reshape(b, n * self.cfg.n_prim)], dim=-1)
+        av = action_valid(valid, self.cfg.wrist_dim, self.cfg.n_prim).to(h.dtype)
+        log_std = torch.cat([self.log_std_wrist, self.log_std_prim.repeat(n)]).expand(b, -1) * av
+        value = self.value_head(torch.cat([eg, masked_mean(h, valid)], dim=-1)).squeeze(-1)
+        return mean, log_std, value
+
+    @torch.no_grad()
+    def act(self, obs: Obs, deterministic: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Sample (or take the mean) → action (B, 6+3N) (zero on padded dims), log_prob (B,), value (B,).
+
+        Actions are unbounded Gaussian samples; the environment clips them to [-1, 1].
+        """
+        mean, log_std, value = self(obs)
+        av = action_valid(obs["node_valid"], self.cfg.wrist_dim, self.cfg.n_prim)
+        action = mean if deterministic else (mean + log_std.exp() * torch.randn_like(mean)) * av
+        return action, gaussian_log_prob(mean, log_std, action, av), value
+
+    def evaluate(self, obs: Obs, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """log_prob (B,), entropy (B,), value (B,) of ``action`` (B, 6+3N), summed over valid action dims."""
+        mean, log_std, value = self(obs)
+        av = action_valid(obs["node_valid"], self.cfg.wrist_dim, self.cfg.n_prim)
+        return gaussian_log_prob(mean, log_std, action, av), gaussian_entropy(log_std, av), value
+
+
+# ---------------------------------------------------------------------- Gaussian helpers
+_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, action: torch.Tensor, av: torch.Tensor) -> torch.Tensor:
+    """Σ over valid dims (``av`` (B, D) bool) of the diagonal-Gaussian log-density → (B,)."""
+    z = (action - mean) * torch.exp(-log_std)
+    lp = -0.5 * z * z - log_std - _HALF_LOG_2PI
+    return (lp * av.to(lp.dtype)).sum(-1)
+
+
+def gaussian_entropy(log_std: torch.Tensor, av: torch.Tensor) -> torch.Tensor:
+    """Σ over valid dims of the per-dim entropy 0.5 + ½log 2π + log σ → (B,)."""
+    return ((0.5 + _HALF_LOG_2PI + log_std) * av.to(log_std.dtype)).sum(-1)
+
+
+def gaussian_kl(mean0: torch.Tensor, log_std0: torch.Tensor, mean1: torch.Tensor, log_std1: torch.Tensor,
+                av: torch.Tensor) -> torch.Tensor:
+    """KL(N0 ‖ N1) summed over valid dims → (B,)."""
+    var0, var1 = torch.exp(2 * log_std0), torch.exp(2 * log_std1)
+    kl = log_std1 - log_std0 + (var0 + (mean0 - mean1) ** 2) / (2 * var1) - 0.5
+    return (kl * av.to(kl.dtype)).sum(-1)
+
+
+# ---------------------------------------------------------------------- cost accounting
+def parameter_count(cfg: MagcnConfig) -> int:
+    return sum(p.numel() for p in MAGCN(cfg).parameters())
+
+
+def flops_per_graph(cfg: MagcnConfig, n_nodes: int = 20) -> int:
+    """Analytic forward FLOPs (2 × multiply-adds) for one graph of ``n_nodes`` nodes.
+
+    Counts every Linear (weights only) and the dense Â·(ZW) products (N² per output channel per layer),
+    i.e. exactly the matmuls :meth:`MAGCN.forward` runs; biases, LayerNorm, activations and pooling
+    (O(N·width) element-wise work) are left out.
+    """
+    n, p = n_nodes, (cfg.phys_out if cfg.use_physical else 0)
+    macs = n * (cfg.phys_dim * cfg.phys_hidden + cfg.phys_hidden * cfg.phys_out) if cfg.use_physical else 0
+    ins = [cfg.node_dim, *cfg.gcn_widths[:-1]]
+    for l, (i, o) in enumerate(zip(ins, cfg.gcn_widths)):
+        fuse = cfg.use_physical and (l == 0 or not cfg.early_fusion)
+        macs += n * (i + (p if fuse else 0)) * o + n * n * o
+    d = cfg.gcn_widths[-1]
+    macs += cfg.global_dim * cfg.global_hidden
+    macs += (cfg.global_hidden + d) * cfg.head_hidden + cfg.head_hidden * cfg.wrist_dim
+    macs += n * ((d + cfg.n_prim) * cfg.head_hidden + cfg.head_hidden * cfg.n_prim)
+    macs += (cfg.global_hidden + d) * cfg.value_hidden + cfg.value_hidden
+    return 2 * macs
