@@ -95,3 +95,15 @@ def test_eval_json_and_zero_shot_refusal(run_dir, tmp_path):
     assert rows[0].startswith("hand,object,trial,success") and len(rows) == 5
     res = _dgz("eval", "--table", str(js), cwd=tmp_path)
     assert res.returncode == 0 and "dgz_tri (train)" in res.stdout
+
+
+@pytest.mark.parametrize("args,message", [
+    (("--preset", "huge"), "is not a MAGCN preset"),
+    (("--ablation", "bogus"), "--ablation"),
+    (("--hands", "nohand"), "unknown hand 'nohand'"),
+    (("--bogus-option",), "No such option"),
+])
+def test_train_bad_options(tmp_path, args, message):
+    res = _dgz("train", "--out", str(tmp_path / "run"), *args, cwd=tmp_path)
+    assert res.returncode != 0 and message in res.stderr and "Traceback" not in res.stderr
+    assert not (tmp_path / "run").exists()

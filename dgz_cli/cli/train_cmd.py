@@ -15,7 +15,24 @@ def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, conso
     from dgz_cli.rl.config import TrainConfig
     from dgz_cli.rl.runner import Trainer, write_csv, write_curve
 
-    cfg = TrainConfig(**cfg_kwargs)
+    from pydantic import ValidationError
+
+    from dgz_cli.policy.presets import PRESETS
+    from dgz_cli.spec.errors import DgzError
+
+    try:
+        cfg = TrainConfig(**cfg_kwargs)
+    except ValidationError as exc:
+        e = exc.errors()[0]
+        raise DgzError(f"--{'.'.join(map(str, e['loc'])).replace('_', '-')}: {e['msg']}", "see `dgz train --help`") from None
+    if cfg.preset not in PRESETS:
+        raise DgzError(f"--preset '{cfg.preset}' is not a MAGCN preset", f"choose one of: {', '.join(sorted(PRESETS))}")
+    from dgz_cli.sim.objects import resolve_objects
+    from dgz_cli.spec.catalog import resolve_spec
+
+    for h in cfg.hands:  # fail on bad input before anything is created
+        resolve_spec(h)
+    resolve_objects(cfg.objects, asset_root)
     out.mkdir(parents=True, exist_ok=True)
     writer = SummaryWriter(log_dir=str(out / "tb"))
 
