@@ -13,7 +13,8 @@ import time
 import numpy as np
 
 from dgz_cli.hw.config import HandConfig
-from dgz_cli.hw.driver import DeviceInfo, HandDriver, HandState
+from dgz_cli.hw.driver import DeviceInfo, HandState
+from dgz_cli.hw.serial_driver import SerialHandDriver
 from dgz_cli.hw.dynamixel import DynamixelBus
 from dgz_cli.hw.errors import TRANSIENT, HardwareError, IdentityError
 from dgz_cli.hw.jointmap import JointMapper
@@ -24,7 +25,7 @@ OPERATING_MODE, TORQUE_ENABLE, D_GAIN, I_GAIN, P_GAIN = 11, 64, 80, 82, 84
 GOAL_CURRENT, GOAL_POSITION, PRESENT = 102, 116, 126  # present current(2) velocity(4) position(4)
 
 
-class LeapDriver(HandDriver):
+class LeapDriver(SerialHandDriver):
     protocol = "dynamixel2"
 
     def __init__(self, cfg: HandConfig, spec: HandSpec, port: str) -> None:
@@ -124,19 +125,3 @@ class LeapDriver(HandDriver):
 
     def torque_off(self) -> None:
         self._sync_write(TORQUE_ENABLE, "<B", [0] * len(self.ids))
-
-    def limits(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.mapper.limits()
-
-    @property
-    def bus_errors(self) -> int:
-        return self.bus.stats.errors if self.bus else 0
-
-    def close(self) -> None:
-        if self.ser is not None:
-            try:
-                self.ser.close()
-            except OSError:
-                pass
-        self.ser = None
-        self.connected = False

@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from dgz_cli.hw.config import HandConfig
-from dgz_cli.hw.driver import HandDriver
+
+from dgz_cli.hw.serial_driver import SerialHandDriver
 from dgz_cli.hw.errors import BusTimeout, HardwareError, IdentityError
 from dgz_cli.hw.jointmap import JointMapper
 from dgz_cli.hw.modbus_rtu import ModbusMaster
 from dgz_cli.hw.serial_port import open_serial
 from dgz_cli.spec.models import HandSpec
 
-
-class ModbusHand(HandDriver):
+class ModbusHand(SerialHandDriver):
     wiring_hint = "check power, the RS485 A/B wiring, the slave id and baud rate in the hand file"
 
     def __init__(self, cfg: HandConfig, spec: HandSpec, port: str) -> None:
@@ -41,19 +39,3 @@ class ModbusHand(HandDriver):
         except HardwareError as exc:
             raise IdentityError(f"{self.port}: {self.cfg.name} identity check failed reading {what}: {exc.message}",
                                 exc.hint or self.wiring_hint) from None
-
-    def limits(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.mapper.limits()
-
-    @property
-    def bus_errors(self) -> int:
-        return self.bus.stats.errors if self.bus else 0
-
-    def close(self) -> None:
-        if self.ser is not None:
-            try:
-                self.ser.close()
-            except OSError:
-                pass
-        self.ser = None
-        self.connected = False

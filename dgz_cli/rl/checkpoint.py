@@ -7,14 +7,13 @@ training hands with their spec hashes, git revision, metrics). Both are written 
 from __future__ import annotations
 
 import hashlib
-import os
 import subprocess
-import tempfile
 from pathlib import Path
 
 import yaml
 
 from dgz_cli.spec.errors import DgzError
+from dgz_cli.spec.io import atomic_write_bytes
 
 
 def git_revision(repo: Path | None = None) -> str | None:
@@ -30,31 +29,13 @@ def spec_hash(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _atomic_bytes(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def save(directory: Path, tensors: dict, meta: dict) -> None:
     """Write ``tensors`` (name → torch.Tensor) and ``meta`` (plain YAML-able dict) into ``directory``."""
     from safetensors.torch import save
 
     directory = Path(directory)
-    _atomic_bytes(directory / "model.safetensors", save({k: v.detach().contiguous().cpu() for k, v in tensors.items()}))
-    _atomic_bytes(directory / "checkpoint.yaml", yaml.safe_dump(meta, sort_keys=False).encode())
+    atomic_write_bytes(directory / "model.safetensors", save({k: v.detach().contiguous().cpu() for k, v in tensors.items()}))
+    atomic_write_bytes(directory / "checkpoint.yaml", yaml.safe_dump(meta, sort_keys=False).encode())
 
 
 def load(directory: Path) -> tuple[dict, dict]:
