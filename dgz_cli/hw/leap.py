@@ -14,10 +14,10 @@ import numpy as np
 
 from dgz_cli.hw.config import HandConfig
 from dgz_cli.hw.driver import DeviceInfo, HandState
-from dgz_cli.hw.serial_driver import SerialHandDriver
 from dgz_cli.hw.dynamixel import DynamixelBus
 from dgz_cli.hw.errors import TRANSIENT, HardwareError, IdentityError
 from dgz_cli.hw.jointmap import JointMapper
+from dgz_cli.hw.serial_driver import SerialHandDriver
 from dgz_cli.hw.serial_port import open_serial
 from dgz_cli.spec.models import HandSpec
 

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from dgz_cli.hw.config import HandConfig
-
-from dgz_cli.hw.serial_driver import SerialHandDriver
 from dgz_cli.hw.errors import BusTimeout, HardwareError, IdentityError
 from dgz_cli.hw.jointmap import JointMapper
 from dgz_cli.hw.modbus_rtu import ModbusMaster
+from dgz_cli.hw.serial_driver import SerialHandDriver
 from dgz_cli.hw.serial_port import open_serial
 from dgz_cli.spec.models import HandSpec
+
 
 class ModbusHand(SerialHandDriver):
     wiring_hint = "check power, the RS485 A/B wiring, the slave id and baud rate in the hand file"
