@@ -68,6 +68,8 @@ class GraspEnv:
         self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
         self.grasp_offset = np.stack([s.grasp_offset for s in self.slots])  # (B, 3) palm frame
+        self.mounts = np.tile(np.eye(3), (B, 1, 1))  # wrist mount rotations, set at each slot's reset
+        self.z0 = np.zeros(B)  # settled object heights, set at each slot's reset
 
     # ---------------------------------------------------------------- static padded arrays
     def _static(self) -> None:
@@ -136,6 +138,8 @@ class GraspEnv:
         for v in self.term_sums.values():
             v[b] = 0.0
         s.gather(self.buf, b)
+        self.mounts[b] = s.mount_rot
+        self.z0[b] = s.z0
         rot = self.buf["xmat"][b, self.N + 1].reshape(3, 3)
         self.prev_rot[b] = rot @ self.palm_axes[b]
         self.prev_palm[b] = self.buf["xpos"][b, self.N + 1] + rot @ self.palm_center[b]
@@ -162,7 +166,7 @@ class GraspEnv:
         lifting = (self.t >= cfg.grasp_steps) & (self.t < cfg.grasp_steps + cfg.lift_steps)
         lift_world = np.zeros((B, 3))
         lift_world[:, 2] = lifting * cfg.lift_height / max(1, cfg.lift_steps)
-        mounts = np.stack([s.mount_rot for s in self.slots])
+        mounts = self.mounts
         delta = np.concatenate([np.einsum("bji,bj->bi", mounts, dp_world),  # world → mount frame
                                 wrist[:, 3:] * cfg.wrist_action_scale], axis=1)
         # A blocked wrist must not wind its target up (it would press with ever growing force), and a
@@ -184,7 +188,7 @@ class GraspEnv:
                              cfg.force_threshold)
         reward = total(terms, cfg.reward, self.use_pen)
         reward[~ok] = 0.0
-        rise = obj_z - self._z0()
+        rise = obj_z - self.z0
         self.max_rise = np.maximum(self.max_rise, rise)
         risen = rise >= cfg.success_fraction * cfg.lift_height
         holding = self.t > cfg.grasp_steps + cfg.lift_steps
@@ -209,9 +213,6 @@ class GraspEnv:
                 obs[key][finished] = fresh[key][finished]
         self.timing["env_other_s"] += time.perf_counter() - t_start - physics
         return obs, reward.astype(np.float32), done & ok, ~ok, info
-
-    def _z0(self) -> np.ndarray:
-        return np.array([s.z0 for s in self.slots])
 
     def _physics(self) -> np.ndarray:
         ctrl = np.concatenate([self.wrist_target, self.targets], axis=1)
