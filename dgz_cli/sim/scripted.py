@@ -52,6 +52,7 @@ class ScriptedGrasp:
         approach = np.stack([error[:, 0] * 20.0, error[:, 1] * 20.0, np.ones(b)], axis=1)
         action[:, :3] = np.where(self.closing[:, None], 0.0, np.clip(approach, -1, 1))
         flex = np.zeros((b, self.n_nodes, 3), dtype=np.float32)
-        flex[:, :, 0] = obs["mask"][:, :, 0]
+        is_wrist = nodes[:, :, COL_TYPE + NODE_TYPES.index("wrist")] > 0  # wrist flexion would tilt the palm away
+        flex[:, :, 0] = obs["mask"][:, :, 0] * ~is_wrist
         action[:, 6:] = np.where(self.closing[:, None], flex.reshape(b, -1), 0.0)
         return action
