@@ -1,7 +1,7 @@
 """A scripted grasp controller that uses only the HandSpec (through the env's observation).
 
 Approach along the palm normal (steering the object centre under the open hand's node centroid), stop when the palm centre
-(the wrist node's anchor) is ``standoff`` from the object surface, touches it, or stops getting closer,
+(the wrist node's anchor) is ``standoff`` from the object surface, touches it, or stops getting closer for 3 steps,
 then close with +FLEX on every
 node; the env's lift phase lifts the wrist. It proves the env and the signs end to end and is the
 floor a learned policy must beat.
@@ -23,6 +23,7 @@ class ScriptedGrasp:
         self.n_nodes, self.offset, self.standoff, self.clip = n_nodes, grasp_offset, standoff, distance_clip
         self.closing: np.ndarray | None = None
         self.last_gap: np.ndarray | None = None
+        self.stalled: np.ndarray | None = None
 
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Forget the phase of the slots in ``mask`` (all when None)."""
@@ -30,9 +31,11 @@ class ScriptedGrasp:
             if mask is None:
                 self.closing[:] = False
                 self.last_gap[:] = np.inf
+                self.stalled[:] = 0
             else:
                 self.closing[mask] = False
                 self.last_gap[mask] = np.inf
+                self.stalled[mask] = 0
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """(B, 6 + 3N) primitive action from the observation dict of :class:`GraspEnv`."""
@@ -41,11 +44,13 @@ class ScriptedGrasp:
         if self.closing is None:
             self.closing = np.zeros(b, bool)
             self.last_gap = np.full(b, np.inf)
+            self.stalled = np.zeros(b, dtype=np.int64)
         wrist_node = np.argmax(nodes[:, :, COL_TYPE + NODE_TYPES.index("wrist")] * valid, axis=1)
         palm_gap = np.linalg.norm(nodes[np.arange(b), wrist_node, COL_D:COL_D + 3], axis=-1) * self.clip
         palm_touch = nodes[np.arange(b), wrist_node, COL_CONTACT] > 0
-        stalled = self.last_gap - palm_gap < 0.002  # the palm stopped getting closer: something is in the way
-        self.closing |= (palm_gap < self.standoff) | palm_touch | stalled
+        # the palm stopped getting closer for 3 steps: something is in the way (a heavy arm only accelerates slowly)
+        self.stalled = np.where(self.last_gap - palm_gap < 0.002, self.stalled + 1, 0)
+        self.closing |= (palm_gap < self.standoff) | palm_touch | (self.stalled >= 3)
         self.last_gap = palm_gap
         action = np.zeros((b, 6 + 3 * self.n_nodes), dtype=np.float32)
         error = glob[:, :3] * 0.5 - self.offset  # object centre relative to the grasp point, m
