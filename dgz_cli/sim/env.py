@@ -30,8 +30,6 @@ from dgz_cli.spec.models import HandSpec
 class GraspEnv:
     def __init__(self, pairs: list[tuple[HandSpec, ObjectModel]], cfg: EnvConfig = EnvConfig(), seed: int = 0,
                  asset_root: str | None = None, threads: int = 2, use_pen: bool = True) -> None:
-        import copy
-
         self.cfg, self.use_pen, self.seed = cfg, use_pen, seed
         cache: dict[tuple[str, str], tuple] = {}
         self.slots: list[Slot] = []
@@ -41,7 +39,7 @@ class GraspEnv:
                 model, index, _ = build_scene(spec, obj, cfg, asset_root, seed)
                 cache[key] = (model, index)
             model, index = cache[key]
-            self.slots.append(Slot(spec, obj, copy.copy(model), index, cfg))
+            self.slots.append(Slot(spec, obj, model, index, cfg))  # slots share the (hand, object) model
         self.B = len(self.slots)
         self.N = max(len(s.spec.nodes) for s in self.slots)
         self.L = max(s.n_joints for s in self.slots)
@@ -68,7 +66,6 @@ class GraspEnv:
         self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
         self.grasp_offset = np.stack([s.grasp_offset for s in self.slots])  # (B, 3) palm frame
-        self.mounts = np.tile(np.eye(3), (B, 1, 1))  # wrist mount rotations, set at each slot's reset
         self.z0 = np.zeros(B)  # settled object heights, set at each slot's reset
 
     # ---------------------------------------------------------------- static padded arrays
@@ -130,7 +127,7 @@ class GraspEnv:
         s.reset(rng)
         self.targets[b] = 0.0
         self.targets[b, :s.n_joints] = s.idx.rest_q
-        self.wrist_target[b] = 0.0
+        self.wrist_target[b] = s.wrist_q0
         self.t[b] = 0
         self.ok_hold[b] = True
         self.ret[b] = 0.0
@@ -138,7 +135,6 @@ class GraspEnv:
         for v in self.term_sums.values():
             v[b] = 0.0
         s.gather(self.buf, b)
-        self.mounts[b] = s.mount_rot
         self.z0[b] = s.z0
         rot = self.buf["xmat"][b, self.N + 1].reshape(3, 3)
         self.prev_rot[b] = rot @ self.palm_axes[b]
@@ -166,15 +162,14 @@ class GraspEnv:
         lifting = (self.t >= cfg.grasp_steps) & (self.t < cfg.grasp_steps + cfg.lift_steps)
         lift_world = np.zeros((B, 3))
         lift_world[:, 2] = lifting * cfg.lift_height / max(1, cfg.lift_steps)
-        mounts = self.mounts
-        delta = np.concatenate([np.einsum("bji,bj->bi", mounts, dp_world),  # world → mount frame
-                                wrist[:, 3:] * cfg.wrist_action_scale], axis=1)
+        # the wrist slides move along the world axes; its hinges turn about the palm's f, l, n axes
+        delta = np.concatenate([dp_world, wrist[:, 3:] * cfg.wrist_action_scale], axis=1)
         # A blocked wrist must not wind its target up (it would press with ever growing force), and a
         # pushed wrist must not drag its target along: commands may not grow the lead beyond the max.
         wq = self.buf["wq"]
         bound = np.maximum(cfg.wrist_max_lead, np.abs(self.wrist_target - wq))
         self.wrist_target = np.clip(self.wrist_target + delta, wq - bound, wq + bound)
-        self.wrist_target[:, :3] += np.einsum("bji,bj->bi", mounts, lift_world)  # the scripted lift is not capped
+        self.wrist_target[:, :3] += lift_world  # the scripted lift is not capped
 
         t_phys = time.perf_counter()
         ok = self._physics()

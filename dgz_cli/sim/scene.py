@@ -21,6 +21,8 @@ from dgz_cli.spec.urdfxml import captured_mujoco_warnings, mujoco_xml, read_robo
 
 HAND_PREFIX = "hand/"
 OBJECT_PREFIX = "obj/"
+WRIST_BASE = np.array([0.0, 0.0, 0.5])  # world position of the wrist mount with the slides at 0
+NOMINAL_PALM = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])  # columns f, l, n: palm facing down
 WRIST_JOINTS = ("wrist_x", "wrist_y", "wrist_z", "wrist_rx", "wrist_ry", "wrist_rz")
 
 
@@ -44,6 +46,9 @@ class SceneIndex:
     object_dadr: int
     cloud: np.ndarray  # (P, 3) object frame
     rest_q: np.ndarray  # (L,)
+    palm_axes_w: np.ndarray  # (3, 3) palm frame axes (f, l, n) in the wrist mount frame, open hand
+    palm_center_w: np.ndarray  # (3,) palm centre in the wrist mount frame
+    grasp_offset: np.ndarray  # (3,) palm centre → the open hand's node centroid, palm frame
 
 
 def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
@@ -76,12 +81,32 @@ def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
     return out
 
 
+def palm_in_root(spec: HandSpec, hand) -> tuple[np.ndarray, np.ndarray]:
+    """Palm frame axes (3, 3; columns f, l, n) and palm centre (3,) in the frame the hand is attached by
+    (the hand model's world frame; a URDF link named ``world`` is that frame), open hand."""
+    import mujoco
+
+    with captured_mujoco_warnings():
+        model = hand.compile()
+    data = mujoco.MjData(model)
+    for r in spec.joints:
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, r.joint)
+        data.qpos[model.jnt_qposadr[jid]] = np.clip(0.0, r.lower, r.upper)
+    mujoco.mj_kinematics(model, data)
+    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, spec.palm.link)
+    rot, pos = data.xmat[bid].reshape(3, 3), data.xpos[bid]
+    axes = np.stack([spec.palm.finger_axis, spec.palm.lateral, spec.palm.normal], axis=1)
+    return rot @ axes, rot @ np.array(spec.palm.center) + pos
+
+
 def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str | None, visual: bool = False):
     """The scene as an ``MjSpec`` (call ``.compile()``; ``.to_xml()`` for a standalone file)."""
     import mujoco
 
     robot = read_robot_xml(resolve_urdf(spec.provenance.urdf, asset_root), spec.provenance.xacro_args)
     hand = mujoco.MjSpec.from_string(mujoco_xml(robot))
+    palm_axes_w, palm_center_w = palm_in_root(spec, mujoco.MjSpec.from_string(mujoco_xml(robot)))
+    mount = NOMINAL_PALM @ palm_axes_w.T  # palm down, finger axis along world +x
     world = mujoco.MjSpec()
     world.modelname = f"dgz_{spec.name}_{obj.name}"
     world.option.timestep = cfg.physics_dt
@@ -92,12 +117,16 @@ def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str
     world.worldbody.add_light(pos=[0, 0, 1.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     world.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.05],
                              rgba=[0.6, 0.6, 0.65, 1], friction=[1.0, 0.005, 0.0001])
-    wrist = world.worldbody.add_body(name="wrist", pos=[0, 0, 0.5], gravcomp=1.0)
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, mount.reshape(-1))
+    wrist = world.worldbody.add_body(name="wrist", pos=list(WRIST_BASE), quat=list(quat), gravcomp=1.0)
     wrist.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0, 0], mass=0.2, contype=0, conaffinity=0,
                    rgba=[0.2, 0.2, 0.2, 1])
+    # slides along the world axes; hinges about the palm frame's f, l, n axes (small tilts, any roll about n)
+    axes = list(mount) + list(palm_axes_w.T)  # rows of mount = world axes in the mount frame
     for k, name in enumerate(WRIST_JOINTS):
         jtype = mujoco.mjtJoint.mjJNT_SLIDE if k < 3 else mujoco.mjtJoint.mjJNT_HINGE
-        wrist.add_joint(name=name, type=jtype, axis=list(np.eye(3)[k % 3]), armature=0.01, damping=0.0)
+        wrist.add_joint(name=name, type=jtype, axis=list(axes[k]), armature=0.01, damping=0.0)
     frame = wrist.add_frame()
     world.attach(hand, frame=frame, prefix=HAND_PREFIX)
     for b in world.bodies:
@@ -152,6 +181,19 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
     geom_node = np.array([owner.get(int(model.geom_bodyid[g]), -1) for g in range(model.ngeom)])
     obj_body = bid(OBJECT_PREFIX + "object")
     obj_j = model.body_jntadr[obj_body]
+    # the open hand in the wrist mount's frame (wrist joints at 0): palm frame and node anchors
+    rest_q = np.clip(0.0, [r.lower for r in spec.joints], [r.upper for r in spec.joints])
+    data = mujoco.MjData(model)
+    data.qpos[[model.jnt_qposadr[j] for j in hand_j]] = rest_q
+    mujoco.mj_kinematics(model, data)
+    wrist = bid("wrist")
+    r_m, p_m = data.xmat[wrist].reshape(3, 3), data.xpos[wrist]
+    r_p = data.xmat[palm].reshape(3, 3)
+    palm_axes_w = r_m.T @ r_p @ np.stack([spec.palm.finger_axis, spec.palm.lateral, spec.palm.normal], axis=1)
+    palm_center_w = r_m.T @ (r_p @ np.array(spec.palm.center) + data.xpos[palm] - p_m)
+    pts = np.array([n.anchor_point for n in spec.nodes], dtype=float)
+    anchors = np.einsum("nij,nj->ni", data.xmat[node_body].reshape(-1, 3, 3), pts) + data.xpos[node_body]
+    anchors = (anchors - p_m) @ r_m
     return SceneIndex(
         wrist_body=bid("wrist"),
         wrist_qadr=np.array([model.jnt_qposadr[jid(n)] for n in WRIST_JOINTS]),
@@ -168,7 +210,10 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         object_qadr=int(model.jnt_qposadr[obj_j]),
         object_dadr=int(model.jnt_dofadr[obj_j]),
         cloud=surface_points(model, obj_body, cfg.point_cloud, seed),
-        rest_q=np.clip(0.0, [r.lower for r in spec.joints], [r.upper for r in spec.joints]),
+        rest_q=rest_q,
+        palm_axes_w=palm_axes_w,
+        palm_center_w=palm_center_w,
+        grasp_offset=palm_axes_w.T @ (anchors.mean(0) - palm_center_w),
     )
 
 

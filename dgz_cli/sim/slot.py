@@ -24,8 +24,8 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
 
 
 class Slot:
-    """A (hand, object) scene. Each slot owns its MjModel copy because resets move the wrist's
-    mount (``body_pos``/``body_quat``) so that the wrist joints start at zero."""
+    """A (hand, object) scene and its own MjData. Slots of the same (hand, object) share one MjModel:
+    resets only set joint values (the wrist slides hold the position, its hinges the orientation)."""
 
     def __init__(self, spec: HandSpec, obj: ObjectModel, model, index: SceneIndex, cfg: EnvConfig) -> None:
         import mujoco
@@ -38,24 +38,13 @@ class Slot:
         self.obj_geom = model.geom_bodyid == index.object_body
         self._bodies = np.r_[index.node_body, index.object_body, index.palm_body]
         self._dofs = np.r_[index.hand_dadr, np.arange(index.object_dadr, index.object_dadr + 6)]
-
         self.z0 = 0.0
-        self.mount_rot = np.eye(3)
-        # palm frame relative to the wrist mount at the rest pose
-        d = self.data
-        model.body_pos[index.wrist_body] = 0.0
-        model.body_quat[index.wrist_body] = [1, 0, 0, 0]
-        d.qpos[:] = model.qpos0
-        d.qpos[index.hand_qadr] = index.rest_q
-        mujoco.mj_kinematics(model, d)
-        r_wp = d.xmat[index.palm_body].reshape(3, 3)
-        p_wp = d.xpos[index.palm_body]
-        self.palm_axes_w = r_wp @ index.palm_axes  # palm frame axes in the mount frame
-        self.palm_center_w = r_wp @ index.palm_center + p_wp
-        anchors = d.xpos[index.node_body] + np.einsum("nij,nj->ni", d.xmat[index.node_body].reshape(-1, 3, 3),
-                                                      index.node_point)
-        # the open hand's node centroid, palm frame: where a scripted grasp puts the object (f, l)
-        self.grasp_offset = self.palm_axes_w.T @ (anchors.mean(0) - self.palm_center_w)
+        self.wrist_q0 = np.zeros(6)  # wrist joint values at the end of the last reset
+        self.grasp_offset = index.grasp_offset
+        wid = index.wrist_body
+        self.mount = _quat_to_mat_wxyz(model.body_quat[wid])
+        self.base = model.body_pos[wid].copy()
+        self.hinge_axes = index.palm_axes_w.T  # f, l, n in the mount frame
 
     def bind(self, n_max: int, l_max: int) -> None:
         """Destination rows in the env's padded buffers (N nodes, L joints)."""
@@ -67,38 +56,34 @@ class Slot:
     def reset(self, rng: np.random.Generator) -> None:
         mj, m, d, idx, cfg = self.mj, self.model, self.data, self.idx, self.cfg
         mj.mj_resetData(m, d)
-        m.body_pos[idx.wrist_body] = [0.0, 0.0, 3.0]  # out of the way while the object settles
-        m.body_quat[idx.wrist_body] = [1, 0, 0, 0]
+        d.qpos[idx.wrist_qadr[:3]] = [0.0, 0.0, 3.0]  # out of the way while the object settles
         rot = random_rotation(rng)
         lowest = (idx.cloud @ rot.T)[:, 2].min()
         d.qpos[idx.object_qadr:idx.object_qadr + 3] = [0.0, 0.0, -lowest + 0.002]
         d.qpos[idx.object_qadr + 3:idx.object_qadr + 7] = _mat_to_quat(rot)
         d.qpos[idx.hand_qadr] = idx.rest_q
         d.ctrl[:] = 0.0
+        d.ctrl[:3] = d.qpos[idx.wrist_qadr[:3]]
         d.ctrl[6:6 + self.n_joints] = idx.rest_q
         mj.mj_step(m, d, nstep=max(1, int(round(cfg.settle_s / cfg.physics_dt))))
         d.qvel[:] = 0.0
         obj_rot = d.xmat[idx.object_body].reshape(3, 3)
         center = d.xpos[idx.object_body] + (idx.cloud @ obj_rot.T).mean(0)
         self.z0 = float(d.xpos[idx.object_body][2])
-        # approach direction u: within a cone around +z; palm normal n = −u; random roll about n
+        # tilt of the approach within the cone (about the palm's f and l axes), any roll about n
         tilt, azim = cfg.approach_cone * np.sqrt(rng.random()), 2 * np.pi * rng.random()
-        u = np.array([np.sin(tilt) * np.cos(azim), np.sin(tilt) * np.sin(azim), np.cos(tilt)])
-        n = -u
-        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        f0 = np.cross(n, helper)
-        f0 /= np.linalg.norm(f0)
-        yaw = 2 * np.pi * rng.random()
-        f = np.cos(yaw) * f0 + np.sin(yaw) * np.cross(n, f0)
-        palm_world = np.stack([f, np.cross(n, f), n], axis=1)
-        mount = palm_world @ self.palm_axes_w.T
-        pos = center + u * cfg.approach_distance - mount @ self.palm_center_w
-        m.body_pos[idx.wrist_body] = pos
-        m.body_quat[idx.wrist_body] = _mat_to_quat(mount)
-        self.mount_rot = mount
-        d.qpos[idx.wrist_qadr] = 0.0
+        hinge = np.array([tilt * np.cos(azim), tilt * np.sin(azim), 2 * np.pi * rng.random()])
+        r_delta = np.eye(3)
+        for axis, angle in zip(self.hinge_axes, hinge):
+            r_delta = r_delta @ _axis_angle(axis, angle)
+        r_wrist = self.mount @ r_delta
+        u = -(r_wrist @ self.hinge_axes[2])  # from the object toward the palm: the palm normal points back
+        pos = center + u * cfg.approach_distance - r_wrist @ idx.palm_center_w
+        q0 = np.concatenate([pos - self.base, hinge])
+        d.qpos[idx.wrist_qadr] = q0
         d.qvel[:] = 0.0
-        d.ctrl[:6] = 0.0
+        d.ctrl[:6] = q0
+        self.wrist_q0 = q0
         mj.mj_forward(m, d)
 
     # -- physics -----------------------------------------------------------------------------
@@ -139,3 +124,13 @@ class Slot:
         for k in sel:  # normal force: first row of an elliptic cone, sum of a pyramid's facets
             adr, dim = d.contact.efc_address[k], d.contact.dim[k]
             force[node[k]] += d.efc_force[adr] if elliptic or dim == 1 else d.efc_force[adr:adr + 2 * (dim - 1)].sum()
+
+
+def _quat_to_mat_wxyz(q: np.ndarray) -> np.ndarray:
+    return quat_to_mat(np.asarray(q, dtype=float) / np.linalg.norm(q))
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix of ``angle`` about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)

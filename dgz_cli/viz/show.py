@@ -27,6 +27,10 @@ PRIMITIVE_COLORS = {"FLEX": "#d62728", "ABD": "#2ca02c", "ROT": "#1f77b4"}
 ARROW_LEN = 0.02  # m, joint-axis arrows
 FRAME_LEN = 0.03  # m, palm-frame axes
 SCALE = 100.0  # plot in cm
+FRAME_COLOR = "#6a3d9a"
+LABEL_SIZE = 6.5  # pt
+LABEL_OFFSET = 6.0  # pt, node centre → label (more around ⊙/⊗ symbols)
+LABEL_MERGE = 0.03  # nodes closer than this fraction of the view's extent share one label
 _MASK_LETTERS = ("F", "A", "R")
 
 
@@ -95,17 +99,18 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
 
     # ---- geometry in the palm frame --------------------------------------------------------------
     hand_links = _subtree_links(kin, palm.link)
-    skeleton = []  # (p_parent, p_child, in_hand)
+    skeleton = []  # (p_parent, p_child, in_hand): an arm's segments are drawn but do not set the extent
     for j in kin.joints.values():
         skeleton.append((to_palm(poser.link_pos(j.parent)), to_palm(poser.link_pos(j.child)),
-                         j.child in hand_links))
+                         j.parent in hand_links))
     anchors = {n.id: to_palm(poser.link_pos(n.anchor_link, np.asarray(n.anchor_point, dtype=float)))
                for n in spec.nodes}
-    arrows = []  # (start, direction (unit, palm frame), primitive)
+    arrows, arrow_nodes = [], []  # (start, direction (unit, palm frame), primitive), node id
     for row in spec.joints:
         if row.node not in anchors:
             continue
         arrows.append((anchors[row.node], dir_palm(poser.joint_axis(row.joint)) * row.sign, row.primitive.value))
+        arrow_nodes.append(row.node)
 
     # view index → (horizontal, vertical, toward-viewer) palm coordinates, f=0 l=1 n=2
     views = [
@@ -115,6 +120,7 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
 
     fig = Figure(figsize=(12, 7), dpi=110)
     axes = fig.subplots(1, 2)
+    fig.subplots_adjust(left=0.06, right=0.98, top=0.9, bottom=0.14, wspace=0.15)
     n_nodes, n_act = len(spec.nodes), len(spec.joints)
     fig.suptitle(f"{spec.name}: {n_nodes} nodes, {n_act} actuated joints ({palm.side} hand)", fontsize=14)
 
@@ -124,39 +130,142 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
     pts = np.array(pts)
 
     for ax, (title, hi, vi, ti, xlabel) in zip(axes, views):
+        # looking along −n with f up, +l points to the viewer's left (l = n × f): the front view's
+        # horizontal axis is inverted. ``screen`` maps palm coordinates to (right, up) in cm.
+        flip = -1.0 if hi == 1 else 1.0
+
+        def screen(v: np.ndarray, flip=flip, hi=hi, vi=vi) -> np.ndarray:
+            return np.array([flip * v[hi], v[vi]])
+
+        # equal aspect: grow the shorter range to the axes box's proportions
+        span = max(float(np.ptp(pts[:, [hi, vi]], axis=0).max()), 1.0)
+        pad = 0.08 * span + 0.5
+        (x0, x1), (y0, y1) = ((pts[:, k].min() - pad, pts[:, k].max() + pad) for k in (hi, vi))
+        box = ax.get_position()
+        box_w, box_h = box.width * fig.get_figwidth() * 72, box.height * fig.get_figheight() * 72  # points
+        if (x1 - x0) / (y1 - y0) < box_w / box_h:
+            grow = ((y1 - y0) * box_w / box_h - (x1 - x0)) / 2
+            x0, x1 = x0 - grow, x1 + grow
+        else:
+            grow = ((x1 - x0) * box_h / box_w - (y1 - y0)) / 2
+            y0, y1 = y0 - grow, y1 + grow
+        ax.set_xlim((x1, x0) if flip < 0 else (x0, x1))
+        ax.set_ylim(y0, y1)
+        ax.set_aspect("equal", adjustable="box")
+        cm_per_pt = (x1 - x0) / box_w
+        screen_box = (min(flip * x0, flip * x1), y0, max(flip * x0, flip * x1), y1)
+
+        out_dirs: dict[str, list[np.ndarray]] = {n.id: [] for n in spec.nodes}  # screen directions leaving a node
+        obstacles: list[tuple[np.ndarray, np.ndarray, float]] = []  # screen segments labels should avoid, weight
+
         # kinematic skeleton
         for a, b, _ in skeleton:
             ax.plot([a[hi], b[hi]], [a[vi], b[vi]], color="#9a9a9a", lw=0.8, zorder=1, solid_capstyle="round")
+            obstacles.append((screen(a), screen(b), 0.3))
         # graph edges node → parent
         for n in spec.nodes:
             if n.parent is not None and n.parent in anchors:
                 a, b = anchors[n.id], anchors[n.parent]
                 ax.plot([a[hi], b[hi]], [a[vi], b[vi]], color="black", lw=2.2, zorder=2)
-        # joint axes × sign
-        for s, d, prim in arrows:
-            _axis_arrow(ax, s, d * ARROW_LEN * SCALE, hi, vi, ti, PRIMITIVE_COLORS[prim], lw=1.6, zorder=4)
+                out_dirs[n.id].append(screen(b - a))
+                out_dirs[n.parent].append(screen(a - b))
+                obstacles.append((screen(a), screen(b), 1.0))
         # nodes
         for n in spec.nodes:
             p = anchors[n.id]
-            ax.scatter([p[hi]], [p[vi]], s=46, color=NODE_COLORS[n.type], edgecolors="black", linewidths=0.6,
-                       zorder=5)
-            ax.annotate(n.id, (p[hi], p[vi]), xytext=(4, 3), textcoords="offset points", fontsize=6.5,
-                        color="#202020", zorder=6,
-                        bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.6))
+            ax.scatter([p[hi]], [p[vi]], s=40, color=NODE_COLORS[n.type], edgecolors="black", linewidths=0.6,
+                       zorder=4)
+        # joint axes × sign, drawn over the node markers; an axis along the view direction is a ⊙/⊗
+        # symbol, drawn once per (place, symbol, colour) and growing when different ones share a place
+        symbols: dict[tuple, int] = {}
+        rings: dict[int, int] = {}  # spot → number of symbols drawn there
+        frame_label: list[tuple[float, float, float, float]] = []  # the ⊙/⊗ palm axis label's rectangle
+
+        places: list[np.ndarray] = []
+
+        def place(v: np.ndarray) -> int:  # index of the spot (nearby points share one) where v is drawn
+            q = screen(v)
+            for i, c in enumerate(places):
+                if np.linalg.norm(c - q) < 0.02 * span:
+                    return i
+            places.append(q)
+            return len(places) - 1
+
+        for (start, d, prim), node_id in zip(arrows, arrow_nodes):
+            vec = d * ARROW_LEN * SCALE
+            if _is_arrow(vec, hi, vi):
+                _draw_arrow(ax, start, vec, hi, vi, PRIMITIVE_COLORS[prim], lw=1.6, zorder=5)
+                out_dirs[node_id].append(screen(vec))
+                obstacles.append((screen(start), screen(start + vec), 1.0))
+            else:
+                key = (place(start), vec[ti] > 0, prim)
+                if key not in symbols:
+                    symbols[key] = rings.get(place(start), 0)
+                    rings[place(start)] = symbols[key] + 1
+                    _draw_symbol(ax, start, vec, hi, vi, ti, PRIMITIVE_COLORS[prim], ring=symbols[key], zorder=5)
         # palm frame axes f and n at the origin
         for k, label in ((0, "f"), (2, "n")):
             e = np.zeros(3)
             e[k] = FRAME_LEN * SCALE
-            _axis_arrow(ax, np.zeros(3), e, hi, vi, ti, "#6a3d9a", lw=1.4, zorder=3, label=label, dashed=True)
+            if _is_arrow(e, hi, vi):
+                _draw_arrow(ax, np.zeros(3), e, hi, vi, FRAME_COLOR, lw=1.4, zorder=3, label=label, dashed=True)
+                obstacles.append((screen(np.zeros(3)), screen(e), 1.0))
+                out_dirs.setdefault("wrist", []).append(screen(e))
+            else:
+                ring = rings.get(place(np.zeros(3)), 0)
+                rings[place(np.zeros(3))] = ring + 1
+                right = -(9 + 3 * ring) * cm_per_pt  # matches _draw_symbol's label offset
+                frame_label.append((right - 8 * cm_per_pt, -5 * cm_per_pt, right, 5 * cm_per_pt))
+                _draw_symbol(ax, np.zeros(3), e, hi, vi, ti, FRAME_COLOR, ring=ring, zorder=4.5, label=label)
+                out_dirs.setdefault("wrist", []).append(np.array([-1.0, 0.0]))  # the symbol's label sits left
 
-        span = np.ptp(pts[:, [hi, vi]], axis=0).max()
-        pad = 0.08 * span + 0.5
-        ax.set_xlim(pts[:, hi].min() - pad, pts[:, hi].max() + pad)
-        ax.set_ylim(pts[:, vi].min() - pad, pts[:, vi].max() + pad)
-        if hi == 1:
-            # looking along −n with f up, +l points to the viewer's left (l = n × f)
-            ax.invert_xaxis()
-        ax.set_aspect("equal", adjustable="datalim")
+        # node labels: nodes that coincide in this view share one label; each label goes to the
+        # side of its node that collides least with edges, arrows, other nodes and other labels
+        clusters: list[list] = []
+        for n in spec.nodes:
+            p = screen(anchors[n.id])
+            for c in clusters:
+                if np.linalg.norm(c[0] - p) < LABEL_MERGE * span:
+                    c[1].append(n.id)
+                    break
+            else:
+                clusters.append([p, [n.id]])
+        node_pts = [c[0] for c in clusters]
+        # obstacle segments sampled at 25 points each: (K, 25, 2) screen cm, and their weights
+        t = np.linspace(0.0, 1.0, 25)[None, :, None]
+        seg_a = np.array([o[0] for o in obstacles]).reshape(-1, 1, 2)
+        seg_b = np.array([o[1] for o in obstacles]).reshape(-1, 1, 2)
+        samples = seg_a + t * (seg_b - seg_a)
+        obstacle_w = np.array([o[2] for o in obstacles], dtype=float)
+        placed: list[tuple[float, float, float, float]] = list(frame_label)
+        for p, ids in clusters:
+            dirs = [d / np.linalg.norm(d) for i in ids for d in out_dirs.get(i, []) if np.linalg.norm(d) > 1e-9]
+            text = "\n".join(ids)
+            w = LABEL_SIZE * 0.58 * max(len(i) for i in ids) * cm_per_pt
+            h = LABEL_SIZE * 1.2 * len(ids) * cm_per_pt
+            spot = next((i for i, q in enumerate(places) if np.linalg.norm(q - p) < 0.02 * span), None)
+            n_rings = rings.get(spot, 0) if spot is not None else 0
+            offset = LABEL_OFFSET if n_rings == 0 else (13 + 6 * (n_rings - 1)) / 2 + 2.0
+            best = None
+            for rank, c in enumerate(_LABEL_DIRS):
+                o = p + c * offset * cm_per_pt
+                rx0 = o[0] if c[0] > 0.3 else o[0] - w if c[0] < -0.3 else o[0] - w / 2
+                ry0 = o[1] if c[1] > 0.3 else o[1] - h if c[1] < -0.3 else o[1] - h / 2
+                rect = (rx0, ry0, rx0 + w, ry0 + h)
+                score = 3.0 * max([0.0] + [float(c @ d) for d in dirs]) + 0.02 * rank
+                score += 4.0 * float(obstacle_w @ _samples_hit(samples, rect))
+                score += 6.0 * sum(_rects_overlap(rect, r) for r in placed)
+                score += 4.0 * sum(_point_in(q, rect, 3 * cm_per_pt) for q in node_pts if q is not p)
+                score += 0.0 if _rect_inside(rect, screen_box) else 10.0
+                if best is None or score < best[0]:
+                    best = (score, c, rect)
+            _, c, rect = best
+            placed.append(rect)
+            ha = "left" if c[0] > 0.3 else "right" if c[0] < -0.3 else "center"
+            va = "bottom" if c[1] > 0.3 else "top" if c[1] < -0.3 else "center"
+            ax.annotate(text, (flip * p[0], p[1]), xytext=tuple(c * offset), textcoords="offset points",
+                        fontsize=LABEL_SIZE, color="#202020", ha=ha, va=va, zorder=3.5, linespacing=1.0)
+
         ax.set_title(title, fontsize=11)
         ax.set_xlabel(xlabel)
         ax.set_ylabel("f (cm)")
@@ -168,11 +277,10 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
     handles += [Line2D([], [], ls="none", marker="o", ms=7, mfc=c, mec="black", label=t)
                 for t, c in NODE_COLORS.items()]
     handles += [Line2D([], [], color=PRIMITIVE_COLORS[p], lw=1.8, label=f"{p} axis × sign") for p in PRIMITIVES]
-    handles += [Line2D([], [], color="#6a3d9a", lw=1.4, ls="--", label="palm frame f, n"),
+    handles += [Line2D([], [], color=FRAME_COLOR, lw=1.4, ls="--", label="palm frame f, n"),
                 Line2D([], [], ls="none", marker="$\\odot$", ms=9, color="#555555", label="axis toward viewer"),
                 Line2D([], [], ls="none", marker="$\\otimes$", ms=9, color="#555555", label="axis away from viewer")]
     fig.legend(handles=handles, loc="lower center", ncol=8, fontsize=8, frameon=False)
-    fig.subplots_adjust(left=0.06, right=0.98, top=0.9, bottom=0.14, wspace=0.15)
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -187,24 +295,50 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
         raise
 
 
-def _axis_arrow(ax, start, vec, hi, vi, ti, color, lw, zorder, label=None, dashed=False):
-    """Arrow ``start → start + vec`` projected on (hi, vi); ⊙/⊗ when it points mostly along the view."""
-    dx, dy = vec[hi], vec[vi]
+_LABEL_DIRS = [np.array(d, dtype=float) / np.linalg.norm(d)
+               for d in ((1, 1), (-1, 1), (1, -1), (-1, -1), (1, 0), (-1, 0), (0, 1), (0, -1))]
+
+
+def _point_in(q, rect, grow: float = 0.0) -> bool:
+    return rect[0] - grow <= q[0] <= rect[2] + grow and rect[1] - grow <= q[1] <= rect[3] + grow
+
+
+def _samples_hit(samples: np.ndarray, rect) -> np.ndarray:
+    """(K,) 0/1: whether any of each segment's sample points (K, S, 2) falls inside ``rect``."""
+    x, y = samples[..., 0], samples[..., 1]
+    inside = (x >= rect[0]) & (x <= rect[2]) & (y >= rect[1]) & (y <= rect[3])
+    return inside.any(axis=1).astype(float)
+
+
+def _rects_overlap(r, s) -> bool:
+    return r[0] < s[2] and s[0] < r[2] and r[1] < s[3] and s[1] < r[3]
+
+
+def _rect_inside(r, box) -> bool:
+    return r[0] >= box[0] and r[1] >= box[1] and r[2] <= box[2] and r[3] <= box[3]
+
+
+def _is_arrow(vec, hi, vi) -> bool:
+    """False when ``vec`` points mostly along the view direction (drawn as ⊙/⊗ instead)."""
     length = float(np.linalg.norm(vec))
-    x0, y0 = start[hi], start[vi]
-    if length == 0:
-        return
-    if np.hypot(dx, dy) < 0.25 * length:
-        # ti is toward the viewer in both views (front: +n; side: the view looks along −l)
-        marker = "$\\odot$" if vec[ti] > 0 else "$\\otimes$"
-        ax.plot([x0], [y0], ls="none", marker=marker, ms=11, color=color, zorder=zorder)
-        if label:
-            ax.annotate(label, (x0, y0), xytext=(-10, -10), textcoords="offset points", fontsize=10,
-                        color=color, fontweight="bold", zorder=zorder)
-        return
+    return length > 0 and float(np.hypot(vec[hi], vec[vi])) >= 0.4 * length
+
+
+def _draw_arrow(ax, start, vec, hi, vi, color, lw, zorder, label=None, dashed=False) -> None:
+    x0, y0, dx, dy = start[hi], start[vi], vec[hi], vec[vi]
     ax.annotate("", xy=(x0 + dx, y0 + dy), xytext=(x0, y0), zorder=zorder,
                 arrowprops=dict(arrowstyle="-|>", color=color, lw=lw, mutation_scale=9, shrinkA=0, shrinkB=0,
                                 ls="--" if dashed else "-"))
     if label:
         ax.annotate(label, (x0 + dx, y0 + dy), xytext=(3, 3), textcoords="offset points", fontsize=10,
                     color=color, fontweight="bold", zorder=zorder)
+
+
+def _draw_symbol(ax, start, vec, hi, vi, ti, color, ring, zorder, label=None) -> None:
+    """⊙ (toward the viewer) or ⊗ (away) at ``start``; ``ring`` > 0 enlarges it around earlier ones."""
+    # ti is toward the viewer in both views (front: +n; side: the view looks along −l)
+    marker = "$\\odot$" if vec[ti] > 0 else "$\\otimes$"
+    ax.plot([start[hi]], [start[vi]], ls="none", marker=marker, ms=13 + 6 * ring, color=color, zorder=zorder)
+    if label:
+        ax.annotate(label, (start[hi], start[vi]), xytext=(-9 - 3 * ring, 0), textcoords="offset points",
+                    fontsize=10, color=color, fontweight="bold", zorder=zorder, ha="right", va="center")
