@@ -24,3 +24,14 @@ def needs_assets():
 
 def shipped_specs() -> list[Path]:
     return sorted(SPECS.glob("*.yaml"))
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """Tiny graphs: one intra-op thread avoids OpenMP spin-waits when the CPU is shared."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)

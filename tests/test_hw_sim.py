@@ -11,6 +11,18 @@ from dgz_cli.hw.driver import HandDriver
 from dgz_cli.hw.factory import make_sim_driver
 
 
+def _track_mid_range(hand):
+    """Enable, command the middle of every joint range for 20 control periods, check it is reached."""
+    hand.enable()
+    lo, hi = hand.limits()
+    target = lo + 0.5 * (hi - lo)
+    hand.write_targets(target)
+    for _ in range(20):
+        state = hand.read_state()
+    assert np.max(np.abs(state.q - target)) < 0.02
+    return state
+
+
 def test_sim_hand_tracks_targets_and_relaxes():
     hand = make_sim_driver("dgz_tri", control_dt=0.05)
     assert isinstance(hand, HandDriver)
@@ -18,22 +30,17 @@ def test_sim_hand_tracks_targets_and_relaxes():
         assert hand.info.identity["spec"] == "dgz_tri" and hand.info.identity["physics"] == "400 Hz"
         q0 = hand.read_state().q
         assert np.allclose(q0, np.clip(0.0, *hand.limits()), atol=1e-3)
-        hand.enable()
-        lo, hi = hand.limits()
-        target = lo + 0.5 * (hi - lo)
-        hand.write_targets(target)
-        for _ in range(20):
-            state = hand.read_state()
-        assert np.max(np.abs(state.q - target)) < 0.02
+        state = _track_mid_range(hand)
         assert state.stamp == pytest.approx(21 * 0.05)  # deterministic: one control period per read
-        hand.write_targets(np.full(len(target), 99.0))  # clipped to the limits
+        lo, hi = hand.limits()
+        hand.write_targets(np.full(len(lo), 99.0))  # clipped to the limits
         for _ in range(20):
             state = hand.read_state()
         assert np.all(state.q <= hi + 0.02)
         hand.relax()
         assert np.all(hand.model.actuator_gainprm[hand.acts, 0] == 0)
         with pytest.raises(ValueError):
-            hand.write_targets(np.full(len(target), np.nan))
+            hand.write_targets(np.full(len(lo), np.nan))
 
 
 def test_sim_is_deterministic():
@@ -51,10 +58,4 @@ def test_sim_is_deterministic():
 @pytest.mark.parametrize("spec", ["leap", "inspire", "revo2"])
 def test_vendor_hands_in_sim(spec):
     with make_sim_driver(spec) as hand:
-        hand.enable()
-        lo, hi = hand.limits()
-        target = lo + 0.5 * (hi - lo)
-        hand.write_targets(target)
-        for _ in range(20):
-            state = hand.read_state()
-        assert np.max(np.abs(state.q - target)) < 0.02
+        state = _track_mid_range(hand)

@@ -17,13 +17,7 @@ SMALL = MagcnConfig(gcn_widths=(16, 24, 24), global_hidden=32, head_hidden=16, v
 PARENTS = [-1, 0, 1, 2, 0, 4, 5, 0, 7]
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """Tiny graphs: one intra-op thread avoids OpenMP spin-waits when the CPU is shared."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def graph(parents=PARENTS, n_pad: int | None = None, seed: int = 0) -> dict[str, np.ndarray]:

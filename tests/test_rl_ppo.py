@@ -12,12 +12,7 @@ from dgz_cli.rl import PPO, AdaptiveKLSchedule, PPOConfig, RolloutStorage
 TINY = MagcnConfig(gcn_widths=(16, 16), global_hidden=16, head_hidden=16, value_hidden=16, phys_out=8)
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def toy_obs(B: int, N: int = 4, seed: int = 0) -> dict[str, np.ndarray]:
