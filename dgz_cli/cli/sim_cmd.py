@@ -140,9 +140,10 @@ def table(files: list[Path], console: Console) -> int:
         except (OSError, ValueError, KeyError, TypeError):
             raise DgzError(f"{f}: not a `dgz eval --json` result", "write one with dgz eval ... --json FILE") from None
         rows.append((Path(f).stem, data.get("policy", "?"), set(data.get("training_hands", [])), hands))
-    seen_cols = sorted({h for _, _, tr, hs in rows for h in hs if h in tr})
-    unseen_cols = sorted({h for _, _, tr, hs in rows for h in hs if h not in tr})
-    t = Table(title="success rate (Table I layout)")
+    trained = set().union(*(tr for _, _, tr, _ in rows))  # the protocol's split: any policy's training hands
+    seen_cols = sorted({h for _, _, _, hs in rows for h in hs if h in trained})
+    unseen_cols = sorted({h for _, _, _, hs in rows for h in hs if h not in trained})
+    t = Table(title="success rate (Table I layout: training hands | unseen hands | averages)")
     t.add_column("policy")
     for h in seen_cols:
         t.add_column(f"{h} (train)", justify="right")
@@ -150,17 +151,13 @@ def table(files: list[Path], console: Console) -> int:
         t.add_column(f"{h} (unseen)", justify="right")
     t.add_column("seen avg", justify="right")
     t.add_column("unseen avg", justify="right")
-    for name, policy, trained, hs in rows:
-        mine_seen = [h for h in seen_cols if h in hs and h in trained]
-        mine_unseen = [h for h in unseen_cols if h in hs and h not in trained]
-
-        def cell(h: str, cols: list[str]) -> str:
-            return f"{hs[h]['success_rate']:.2f}" if h in cols else "—"
-
+    for name, policy, _, hs in rows:
         def avg(cols: list[str]) -> str:
-            return f"{sum(hs[h]['success_rate'] for h in cols) / len(cols):.2f}" if cols else "—"
+            have = [hs[h]["success_rate"] for h in cols if h in hs]
+            return f"{sum(have) / len(have):.2f}" if have else "—"
 
-        t.add_row(f"{name} ({policy})", *[cell(h, mine_seen) for h in seen_cols],
-                  *[cell(h, mine_unseen) for h in unseen_cols], avg(mine_seen), avg(mine_unseen))
-    console.print(t)
+        cells = [f"{hs[h]['success_rate']:.2f}" if h in hs else "—" for h in seen_cols + unseen_cols]
+        t.add_row(f"{name} ({policy})", *cells, avg(seen_cols), avg(unseen_cols))
+    wide = Console(file=console.file, width=max(console.width, 60 + 16 * (len(seen_cols) + len(unseen_cols))))
+    wide.print(t)
     return 0

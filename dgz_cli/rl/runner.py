@@ -28,7 +28,7 @@ from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.errors import DgzError
-from dgz_cli.spec.io import load_spec
+from dgz_cli.spec.io import atomic_write_bytes, load_spec
 
 ABLATIONS = {
     "full": dict(),
@@ -198,8 +198,7 @@ class Trainer:
 
 def write_curve(history: list[dict], path: Path) -> None:
     """Training curve PNG (success rate and mean return per iteration), written atomically."""
-    import os
-    import tempfile
+    import io
 
     import matplotlib
 
@@ -213,11 +212,10 @@ def write_curve(history: list[dict], path: Path) -> None:
     ax[1].plot(it, [h["mean_return"] if h["mean_return"] is not None else np.nan for h in history])
     ax[1].set(xlabel="iteration", ylabel="mean episode return")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(fd)
-    fig.savefig(tmp, dpi=90)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
-    os.replace(tmp, path)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def write_csv(history: list[dict], path: Path) -> None:
