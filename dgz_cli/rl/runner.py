@@ -205,11 +205,11 @@ def write_curve(history: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    it = [h["iteration"] for h in history]
+    ended = [h for h in history if h["success_rate"] is not None]  # iterations in which episodes ended
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.5))
-    ax[0].plot(it, [h["success_rate"] if h["success_rate"] is not None else np.nan for h in history])
+    ax[0].plot([h["iteration"] for h in ended], [h["success_rate"] for h in ended], marker=".")
     ax[0].set(xlabel="iteration", ylabel="success rate (episodes ended in the iteration)", ylim=(0, 1))
-    ax[1].plot(it, [h["mean_return"] if h["mean_return"] is not None else np.nan for h in history])
+    ax[1].plot([h["iteration"] for h in ended], [h["mean_return"] for h in ended], marker=".")
     ax[1].set(xlabel="iteration", ylabel="mean episode return")
     fig.tight_layout()
     buf = io.BytesIO()
