@@ -56,7 +56,10 @@ def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, conso
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {', '.join(cfg.hands)} × {cfg.objects}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
     previous = signal.getsignal(signal.SIGTERM)
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    def _stop(*_) -> None:  # SIGTERM saves and exits like Ctrl-C
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _stop)
     try:
         trainer.train()
     except KeyboardInterrupt:

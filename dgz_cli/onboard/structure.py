@@ -133,7 +133,6 @@ def analyse(kin: Kinematics, poser: Poser, palm_link: str | None = None) -> Stru
     for joints in chains:
         last = kin.joints[joints[-1]]
         group = rigid_group(kin, last.child)
-        group = [l for l in group if l == last.child or l not in _ancestors(kin, last.child)]
         anchor = poser.joint_anchor(last.name)
         cands = [poser.link_pos(l) for l in group] + list(poser.geom_points(group))
         tip = max(cands, key=lambda p: float(np.linalg.norm(p - anchor)))

@@ -3,9 +3,10 @@
 API (Gymnasium-style naming, arrays batched over B slots, padded to N nodes and L joints):
     obs = env.reset(seed)                            # dict of arrays, see ``observation``
     obs, reward, terminated, truncated, info = env.step(action)
-``action`` (B, 6 + 3N) in [-1, 1]: wrist (Δp in the palm frame f/l/n, Δθ Euler increments of the
-wrist hinges) then (FLEX, ABD, ROT) per node; with ``action_mode="joint"`` (the paper's w/o-primitives
-ablation) a node's three values are raw increments of its actuated joints in M_h order, no sign. Finger increments are scaled by 0.015 rad, wrist ones by 0.01 (m or rad).
+``action`` (B, 6 + 3N) in [-1, 1]: wrist (Δp in the palm frame f/l/n, Δθ increments of the wrist
+hinges about the palm's f, l, n axes) then (FLEX, ABD, ROT) per node; with ``action_mode="joint"``
+(the paper's w/o-primitives ablation) a node's three values are raw increments of its actuated
+joints in M_h order, no sign. Finger increments are scaled by 0.015 rad, wrist ones by 0.01 (m or rad).
 Episodes: ``grasp_steps`` policy steps, then ``lift_steps`` during which the wrist is also lifted by
 ``lift_height``, then ``hold_steps`` holding; a slot that finishes is reset at once (its final
 statistics are in ``info["episode"]``). A MuJoCo instability resets only that slot and is counted.
@@ -65,7 +66,7 @@ class GraspEnv:
             s.bind(N, L)
         self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
-        self.grasp_offset = np.stack([s.grasp_offset for s in self.slots])  # (B, 3) palm frame
+        self.grasp_offset = np.stack([s.idx.grasp_offset for s in self.slots])  # (B, 3) palm frame
         self.z0 = np.zeros(B)  # settled object heights, set at each slot's reset
 
     # ---------------------------------------------------------------- static padded arrays

@@ -40,9 +40,8 @@ class Slot:
         self._dofs = np.r_[index.hand_dadr, np.arange(index.object_dadr, index.object_dadr + 6)]
         self.z0 = 0.0
         self.wrist_q0 = np.zeros(6)  # wrist joint values at the end of the last reset
-        self.grasp_offset = index.grasp_offset
         wid = index.wrist_body
-        self.mount = _quat_to_mat_wxyz(model.body_quat[wid])
+        self.mount = quat_to_mat(model.body_quat[wid])  # compiled quaternions are unit
         self.base = model.body_pos[wid].copy()
         self.hinge_axes = index.palm_axes_w.T  # f, l, n in the mount frame
 
@@ -124,10 +123,6 @@ class Slot:
         for k in sel:  # normal force: first row of an elliptic cone, sum of a pyramid's facets
             adr, dim = d.contact.efc_address[k], d.contact.dim[k]
             force[node[k]] += d.efc_force[adr] if elliptic or dim == 1 else d.efc_force[adr:adr + 2 * (dim - 1)].sum()
-
-
-def _quat_to_mat_wxyz(q: np.ndarray) -> np.ndarray:
-    return quat_to_mat(np.asarray(q, dtype=float) / np.linalg.norm(q))
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
