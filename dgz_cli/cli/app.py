@@ -116,6 +116,13 @@ def train(
     steps: int = typer.Option(130, "--steps", min=1, help="transitions per env per update"),
     checkpoint_every: int = typer.Option(5, "--checkpoint-every", min=1, help="iterations between checkpoints"),
     seed: int = typer.Option(0, "--seed"),
+    bc_episodes: int = typer.Option(0, "--bc-episodes", min=0,
+                                    help="warm start: clone the scripted grasp over this many episodes per env "
+                                         "before PPO (0 = from scratch, as in the paper)"),
+    bc_epochs: int = typer.Option(10, "--bc-epochs", min=1, help="epochs of the behaviour-cloning fit"),
+    lift_weight: float = typer.Option(0.0, "--lift-weight", min=0.0,
+                                      help="weight of r_lift, the object's rise after the grasp phase "
+                                           "(not in the paper; 0 = the paper's reward)"),
     resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
@@ -123,7 +130,8 @@ def train(
     from dgz_cli.cli import train_cmd
 
     cfg = dict(hands=tuple(h for h in hands.split(",") if h), objects=objects, preset=preset, ablation=ablation,
-               iterations=iterations, repeat=repeat, steps_per_env=steps, checkpoint_every=checkpoint_every, seed=seed)
+               iterations=iterations, repeat=repeat, steps_per_env=steps, checkpoint_every=checkpoint_every, seed=seed,
+               bc_episodes=bc_episodes, bc_epochs=bc_epochs, lift_weight=lift_weight)
     raise typer.Exit(train_cmd.run(cfg, out_dir, resume, asset_root, out))
 
 
@@ -191,9 +199,18 @@ def bench_sim(
 def deploy(
     hand: Optional[str] = typer.Option(None, "--hand", help="revo2, inspire, leap (hand files), a hand file path, or sim"),
     port: Optional[str] = typer.Option(None, "--port", help="serial port (prefer /dev/serial/by-id/...), or sim"),
-    policy: str = typer.Option("scripted", "--policy", help="'scripted' or package.module:factory (called with the HandSpec)"),
+    policy: str = typer.Option("scripted", "--policy",
+                               help="'scripted', a trained checkpoint folder or a name under policies/ "
+                                    "(e.g. dgz-cpu-first), or package.module:factory (called with the HandSpec)"),
     object_points: Optional[Path] = typer.Option(None, "--object-points",
-                                                 help="object point cloud (.npy or 'x y z' lines), robot base frame"),
+                                                 help="object point cloud: .npy (P, 3) or 'x y z' lines, metres, "
+                                                      "palm frame (f, l, n) at the start pose"),
+    allow_privileged: bool = typer.Option(False, "--allow-privileged",
+                                          help="run a policy that observes contact flags/forces (a teacher) with "
+                                               "those inputs fed as zeros; for tests, not for grasping"),
+    arm: str = typer.Option("none", "--arm", help="wrist command goes to: none (logged only), sim (ideal arm), "
+                                                  "piper (AgileX Piper via piper-sdk), or an arm file path"),
+    arm_port: Optional[str] = typer.Option(None, "--arm-port", help="CAN interface of the arm (default: from the arm file, can0)"),
     dry_run: bool = typer.Option(False, "--dry-run", help="connect and read only: never write to the hand"),
     fake: bool = typer.Option(False, "--fake", help="start the hand's fake device on a pseudo-terminal and connect to it"),
     yes: bool = typer.Option(False, "--yes", help="do not ask before the hand moves"),
@@ -206,7 +223,8 @@ def deploy(
     from dgz_cli.cli import deploy_cmd
 
     raise typer.Exit(deploy_cmd.run(hand, port, policy, object_points, dry_run, fake, yes, log, on_exit, replay, out,
-                                    asset_root=asset_root))
+                                    asset_root=asset_root, allow_privileged=allow_privileged, arm=arm,
+                                    arm_port=arm_port))
 
 
 @bench_app.command("deploy")

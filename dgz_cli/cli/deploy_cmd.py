@@ -1,8 +1,9 @@
 """`dgz deploy`: run a grasp policy on a real hand (or its pty fake, or the MuJoCo sim) safely.
 
-connect → identity check → confirm → slow ramp to the start pose → 130 policy steps → scripted lift
-(arm interface ``none``: the lift command is logged) → hold or relax. First Ctrl-C stops safely, a second
-relaxes at once. ``--dry-run`` reads but never writes; ``--replay LOG`` plays a step log on the sim.
+connect hand and arm → identity check → confirm → slow ramp to the thumb-open start pose → 130 policy
+steps (wrist command → arm interface: ``none`` logs it, ``sim`` an ideal arm, ``piper`` an AgileX Piper) →
+scripted lift → arm holds, hand holds or relaxes. First Ctrl-C stops safely, a second relaxes at once.
+``--dry-run`` reads but never writes; ``--replay LOG`` plays a step log on the sim.
 """
 
 from __future__ import annotations
@@ -17,24 +18,38 @@ from dgz_cli.spec.errors import DgzError
 
 
 def load_points(path: Path):
-    """An object point cloud (K × 3, metres, robot base frame) from .npy or a text file (x y z per line)."""
-    import numpy as np
+    """(P, 3) object points (m, palm frame at the start pose) from .npy or 'x y z' text; see docs/deploy.md."""
+    from dgz_cli.runtime.observation import load_object_points
 
-    path = Path(path)
-    if not path.is_file():
-        raise DgzError(f"{path}: no such point-cloud file", "pass a .npy or text file with one 'x y z' per line")
-    try:
-        if path.suffix == ".npy":
-            pts = np.load(path, allow_pickle=False)
-        else:
-            text = path.read_text(encoding="utf-8").replace(",", " ")
-            pts = np.loadtxt(text.splitlines(), ndmin=2)
-    except (ValueError, OSError) as exc:
-        raise DgzError(f"{path}: cannot read points ({exc})", "use .npy (K×3 float) or 'x y z' text lines") from None
-    pts = np.asarray(pts, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
-        raise DgzError(f"{path}: expected K×3 finite points, got shape {pts.shape}", "export x, y, z columns only")
-    return pts
+    return load_object_points(path)
+
+
+def _make_arm(arm: str, spec, asset_root: str | None, arm_port: str | None):
+    """``none`` | ``sim`` | ``piper`` | an arm file path → an arm interface (not connected yet)."""
+    from dgz_cli.hw.arm import ArmInterface, SimArm
+
+    if arm == "none":
+        return ArmInterface()
+    if arm != "sim" and arm != "piper" and not arm.endswith((".yaml", ".yml")):
+        raise DgzError(f"--arm {arm!r} is not supported", "use --arm none, sim, piper, or a path to an arm file")
+    from dgz_cli.runtime.kinematics import HandKinematics
+
+    kin = HandKinematics.for_spec(spec, asset_root)  # the palm frame in the hand's root frame
+    kin.pose(kin.rest)
+    r_palm, c_palm = kin.palm_frame()
+    if arm == "sim":
+        return SimArm(r_palm, c_palm)
+    from dgz_cli.hw.arm_config import load_arm_config
+    from dgz_cli.hw.piper import PiperArm
+
+    cfg = load_arm_config(arm)
+    if arm_port:
+        cfg = cfg.model_copy(update={"can_port": arm_port})
+    return PiperArm(cfg, r_palm, c_palm)
+
+
+def _warn(console: Console, text: str) -> None:
+    console.print(f"[yellow]warning:[/] {escape(text)}", soft_wrap=True, highlight=False)
 
 
 def _confirm(console: Console, what: str, yes: bool) -> None:
@@ -51,11 +66,12 @@ def _confirm(console: Console, what: str, yes: bool) -> None:
 def run(hand: str | None, port: str | None, policy: str, object_points: Path | None, dry_run: bool, fake: bool,
         yes: bool, log: Path | None, on_exit: str, replay: Path | None, console: Console, *, rate_hz: float = 20.0,
         grasp_steps: int = 130, lift_steps: int = 30, asset_root: str | None = None,
-        allow_privileged: bool = False) -> int:
+        allow_privileged: bool = False, arm: str = "none", arm_port: str | None = None) -> int:
     from dgz_cli.hw.factory import SIM_HAND, load_hand, make_driver
     from dgz_cli.runtime.loop import RunConfig, Runner
-    from dgz_cli.runtime.mapping import start_pose
-    from dgz_cli.runtime.policy import load_policy
+    from dgz_cli.runtime.observation import HardwareObservation
+    from dgz_cli.runtime.policy import load_policy, privileged_needs
+    from dgz_cli.runtime.pregrasp import deploy_start_pose
     from dgz_cli.runtime.rate import InterruptGuard
     from dgz_cli.runtime.steplog import StepLogger
     from dgz_cli.runtime.steplog import replay as replay_log
@@ -83,49 +99,68 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
         spec_ref = SIM_HAND if hand == "sim" else hand
         spec = load_spec(resolve_spec(spec_ref))
         driver = SimHand(spec, asset_root=asset_root, control_dt=1.0 / rate_hz)
-        start = start_pose(spec)
+        overrides = None
     else:
         cfg, spec = load_hand(hand)
-        spec_ref = cfg.spec
+        spec_ref, overrides, driver = cfg.spec, cfg.start_pose, None
+        if fake and port:
+            raise DgzError(f"--fake starts its own device; --port {port} would be ignored", "drop --port or --fake")
+        if not fake and not port:
+            raise DgzError(f"no --port given for hand '{hand}'",
+                           "pass --port /dev/serial/by-id/...; --fake tries a simulated device, --port sim the sim")
+    points = load_points(object_points) if object_points else None
+    pol = load_policy(policy, spec, allow_privileged=allow_privileged, asset_root=asset_root)
+    needs = privileged_needs(pol)
+    if needs:
+        _warn(console, f"policy '{policy}' observes {', '.join(needs)}, which this hand cannot measure: fed as "
+                       "zeros (--allow-privileged); expect a worse grasp than in simulation")
+    if isinstance(getattr(pol, "observation_builder", None), HardwareObservation) and points is None:
+        raise DgzError(f"policy '{policy}' needs the object: no --object-points given",
+                       "pass --object-points FILE: (P, 3) points in metres in the palm frame at the start pose")
+    start, note = deploy_start_pose(spec, overrides, asset_root)
+    if note:
+        _warn(console, note)
+    arm_if = _make_arm(arm, spec, asset_root, arm_port)
+    cfg_run = RunConfig(rate_hz=rate_hz, grasp_steps=grasp_steps, lift_steps=lift_steps, on_exit=on_exit,
+                        dry_run=dry_run, arm=arm_if.name)
+    logger = StepLogger(log)
+    try:
         if fake:
-            if port:
-                raise DgzError(f"--fake starts its own device; --port {port} would be ignored", "drop --port or --fake")
             from dgz_cli.hw.fakes import fake_for
 
             fake_dev = fake_for(cfg).start()
             port = fake_dev.port
-        elif not port:
-            raise DgzError(f"no --port given for hand '{hand}'",
-                           "pass --port /dev/serial/by-id/...; --fake tries a simulated device, --port sim the sim")
-        driver = make_driver(cfg, spec, port)
-        start = start_pose(spec, cfg.start_pose)
-    context = {"object_points": load_points(object_points) if object_points else None}
-    pol = load_policy(policy, spec, allow_privileged=allow_privileged)
-    logger = StepLogger(log)
-    cfg_run = RunConfig(rate_hz=rate_hz, grasp_steps=grasp_steps, lift_steps=lift_steps, on_exit=on_exit,
-                        dry_run=dry_run)
-    try:
+        if driver is None:
+            driver = make_driver(cfg, spec, port)
         with driver:
             info = driver.info
             where = "fake device " + port if fake_dev else ("MuJoCo" if simulated else port)
             console.print(f"connected {escape(hand)} on {escape(where)}: {escape(info.summary())}")
-            if not dry_run and not simulated:
-                _confirm(console, f"The hand on {port} will ramp slowly to its start pose, run policy '{policy}' "
-                                  f"for {grasp_steps} steps, then {on_exit} at the end.", yes)
+            console.print(f"arm {arm_if.name}: {escape(arm_if.connect())}")
+            if not dry_run and (not simulated or arm_if.name == "piper"):
+                moves = "the arm follows the wrist command, " if arm_if.name == "piper" else ""
+                _confirm(console, f"The hand on {port or 'sim'} will ramp slowly to its start pose, run policy "
+                                  f"'{policy}' for {grasp_steps} steps ({moves}then a {lift_steps}-step lift), "
+                                  f"then {on_exit} at the end.", yes)
             logger.header(hand=hand, spec=spec_ref, joints=driver.joint_names, nodes=[n.id for n in spec.nodes],
                           rate_hz=rate_hz, port=port or "sim", identity=info.identity, policy=policy,
-                          dry_run=dry_run, on_exit=on_exit, arm="none", fake=bool(fake_dev))
+                          dry_run=dry_run, on_exit=on_exit, arm=arm_if.name, fake=bool(fake_dev),
+                          start_pose=start, privileged_zeroed=needs)
             mode = "dry run (reads only)" if dry_run else "running"
             console.print(f"{mode}: {grasp_steps} grasp + {lift_steps} lift steps at {rate_hz:g} Hz — "
                           "Ctrl-C stops safely, a second Ctrl-C relaxes at once")
+            context = {"object_points": points}
             with InterruptGuard() as guard:
-                result = Runner(driver, spec, pol, cfg_run, logger=logger, guard=guard, context=context).run(start)
+                result = Runner(driver, spec, pol, cfg_run, logger=logger, guard=guard, context=context,
+                                arm=arm_if).run(start)
     finally:
         logger.close()
+        arm_if.close()
         if fake_dev is not None:
             fake_dev.stop()
     stats = (f"{result.steps} steps, ramp {result.ramp_steps}, {result.overruns} overruns, "
-             f"{result.bus_errors} bus errors, exit action: {result.exit_action}")
+             f"{result.bus_errors} bus errors, exit action: {result.exit_action}"
+             + (f", arm: {result.arm_exit}" if arm_if.name != "none" else ""))
     if result.ok:
         console.print(f"[green]done[/]: {escape(stats)}" + (f"; log {escape(str(log))}" if log else ""))
     else:

@@ -42,7 +42,7 @@ def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, conso
                 writer.add_scalar(k, v, row["iteration"])
         writer.flush()
         sr = "—" if row["success_rate"] is None else f"{row['success_rate']:.3f}"
-        terms = " ".join(f"{k[2:]} {row[k]:.2f}" for k in ("r_dis", "r_contact", "r_force", "r_reg", "r_pen")
+        terms = " ".join(f"{k[2:]} {row[k]:.2f}" for k in ("r_dis", "r_contact", "r_force", "r_reg", "r_pen", "r_lift")
                          if row.get(k) is not None)
         console.print(f"it {row['iteration']:4d}/{cfg.iterations}  {row['steps_per_s']:7.0f} steps/s  success {sr}  "
                       f"return {row['mean_return'] if row['mean_return'] is None else round(row['mean_return'], 1)}  "
@@ -52,7 +52,13 @@ def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, conso
         write_curve(trainer.history, out / "curve.png")
         write_csv(trainer.history, out / "history.csv")
 
-    trainer = Trainer(cfg, out, asset_root, resume=resume, log=log)
+    def warm(stats: dict) -> None:
+        console.print(f"behaviour cloning from the scripted grasp: {stats['episodes']} episodes "
+                      f"(teacher success {stats['teacher_success_rate']:.3f}), action MSE {stats['bc_action_loss']:.4f}, "
+                      f"value MSE {stats['bc_value_loss']:.3f} [dim]collect {stats['collect_s']}s fit {stats['fit_s']}s[/]",
+                      highlight=False)
+
+    trainer = Trainer(cfg, out, asset_root, resume=resume, log=log, on_warm_start=warm)
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {', '.join(cfg.hands)} × {cfg.objects}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
     previous = signal.getsignal(signal.SIGTERM)

@@ -21,3 +21,10 @@ class TrainConfig(BaseModel):
     seed: int = 0
     threads: int = Field(2, ge=1, description="physics worker threads")
     torch_threads: int = Field(1, ge=1, description="torch threads for the PPO update (rollouts always use 1)")
+    bc_episodes: int = Field(0, ge=0, description="behaviour-cloning warm start: scripted episodes per env before "
+                                                  "PPO (0 = from scratch, as in the paper)")
+    bc_epochs: int = Field(10, ge=1, description="epochs of the behaviour-cloning regression")
+    bc_log_std: float = Field(-1.5, description="exploration log-std set after behaviour cloning")
+    bc_learning_rate: float = Field(2e-5, gt=0, description="PPO's starting learning rate after behaviour cloning "
+                                    "(the adaptive-KL schedule adapts it; 5e-4 undoes the clone in a few steps)")
+    lift_weight: float = Field(0.0, ge=0, description="weight of r_lift (not in the paper; 0 = the paper's reward)")

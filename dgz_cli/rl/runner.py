@@ -23,7 +23,7 @@ from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO, PPOConfig
 from dgz_cli.rl.storage import RolloutStorage
-from dgz_cli.sim.config import EnvConfig
+from dgz_cli.sim.config import EnvConfig, RewardWeights
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
@@ -44,7 +44,8 @@ def model_config(cfg: TrainConfig):
 
 
 def env_config(cfg: TrainConfig) -> EnvConfig:
-    return EnvConfig(action_mode="joint" if cfg.ablation == "no_primitives" else "primitive")
+    return EnvConfig(action_mode="joint" if cfg.ablation == "no_primitives" else "primitive",
+                     reward=RewardWeights(lift=cfg.lift_weight))
 
 
 def build_model(meta_policy: dict) -> MAGCN:
@@ -69,8 +70,9 @@ def load_policy(directory: Path) -> tuple[MAGCN, dict]:
 
 class Trainer:
     def __init__(self, cfg: TrainConfig, out: Path, asset_root: str | None, resume: bool = False,
-                 log: Callable[[dict], None] | None = None) -> None:
+                 log: Callable[[dict], None] | None = None, on_warm_start: Callable[[dict], None] | None = None) -> None:
         self.cfg, self.out, self.log = cfg, Path(out), log or (lambda row: None)
+        self.on_warm_start = on_warm_start or (lambda stats: None)
         torch.manual_seed(cfg.seed)
         self.spec_paths = [resolve_spec(h) for h in cfg.hands]
         specs = [load_spec(p) for p in self.spec_paths]
@@ -84,6 +86,7 @@ class Trainer:
         self.reward_norm = ReturnNormalizer(self.env.B, self.ppo.cfg.gamma)
         self.iteration = 0
         self.history: list[dict] = []
+        self.warm_start: dict | None = None  # behaviour-cloning statistics, once done
         if resume:
             self._resume()
         elif (self.out / "checkpoint.yaml").exists():
@@ -104,6 +107,8 @@ class Trainer:
             learning_rate=float(self.ppo.learning_rate),
             reward_normalizer=self.reward_norm.state(),
             last=self.history[-1] if self.history else None,
+            warm_start=self.warm_start,
+            privileged_inputs=["contact", "force"],  # observed in simulation, absent on hardware
         )
 
     def save(self) -> None:
@@ -124,6 +129,7 @@ class Trainer:
         self.ppo.load_optimizer_tensors({k[6:]: v for k, v in tensors.items() if k.startswith("optim.")},
                                         meta.get("learning_rate"))
         self.iteration = int(meta["iteration"])
+        self.warm_start = meta.get("warm_start")
         if meta.get("reward_normalizer"):
             self.reward_norm.load(meta["reward_normalizer"])
         hist = self.out / "history.jsonl"
@@ -134,8 +140,10 @@ class Trainer:
     # ------------------------------------------------------------------ loop
     def train(self) -> None:
         cfg, env = self.cfg, self.env
-        obs = env.reset(cfg.seed + self.iteration)
         try:
+            if self.iteration == 0 and cfg.bc_episodes > 0 and self.warm_start is None:
+                self.behaviour_clone()
+            obs = env.reset(cfg.seed + self.iteration)
             while self.iteration < cfg.iterations:
                 obs = self._iteration(obs)
                 if self.iteration % cfg.checkpoint_every == 0 or self.iteration == cfg.iterations:
@@ -145,6 +153,23 @@ class Trainer:
             raise
         finally:
             env.close()
+
+    def behaviour_clone(self) -> None:
+        """Warm start from the scripted grasp (see :mod:`dgz_cli.rl.bc`); logged as iteration 0."""
+        from dgz_cli.rl import bc
+
+        cfg, t0 = self.cfg, time.perf_counter()
+        torch.set_num_threads(1)
+        demos = bc.collect(self.env, cfg.bc_episodes, self.reward_norm, self.ppo.cfg.gamma, cfg.seed)
+        collect_s = time.perf_counter() - t0
+        torch.set_num_threads(cfg.torch_threads)
+        stats = bc.pretrain(self.model, demos, epochs=cfg.bc_epochs, log_std=cfg.bc_log_std, seed=cfg.seed)
+        self.warm_start = dict(teacher="scripted", episodes=demos.episodes, teacher_success_rate=demos.success_rate,
+                               collect_s=round(collect_s, 1), fit_s=round(time.perf_counter() - t0 - collect_s, 1),
+                               **stats)
+        self.ppo.set_learning_rate(cfg.bc_learning_rate)
+        self.save()  # iteration 0: the clone alone, before any PPO update
+        self.on_warm_start(self.warm_start)
 
     def _iteration(self, obs: dict) -> dict:
         env, t0 = self.env, time.perf_counter()
@@ -188,7 +213,7 @@ class Trainer:
                    success_rate=float(np.mean([e["success"] for e in episodes])) if episodes else None,
                    mean_return=float(np.mean([e["return_"] for e in episodes])) if episodes else None,
                    **{k: float(np.mean([e[k] for e in episodes])) if episodes else None
-                      for k in ("r_dis", "r_contact", "r_force", "r_reg", "r_pen", "max_rise")},
+                      for k in ("r_dis", "r_contact", "r_force", "r_reg", "r_pen", "r_lift", "max_rise")},
                    learning_rate=float(self.ppo.learning_rate),
                    **{k: float(v) for k, v in stats.items() if k != "learning_rate"})
         self.history.append(row)

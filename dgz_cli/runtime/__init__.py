@@ -1,4 +1,7 @@
-"""Deploy runtime: safety filter, wrist Kalman filter, fixed-rate loop, step log and replay.
+"""Deploy runtime: safety filter, wrist Kalman filter, fixed-rate loop, step log and replay, and what a trained
+policy needs on hardware (forward kinematics, the observation builder, the thumb-open start pose).
 
-Composes :mod:`dgz_cli.hw` (drivers) with a policy given by reference; never imports sim or training code.
+A higher layer: composes :mod:`dgz_cli.hw` (hand drivers, arm interfaces) with policies; may import
+:mod:`dgz_cli.sim` (feature functions, static graph) and :mod:`dgz_cli.policy` / :mod:`dgz_cli.rl` (checkpoints).
+torch and mujoco are imported inside functions only, so ``dgz --help`` stays instant.
 """

@@ -1,12 +1,14 @@
 """The control loop: read → observe → policy → safety → write at a fixed rate, with a safe exit.
 
 Phases: ``ramp`` (slowly to the start pose, skipped in a dry run), ``grasp`` (the policy, 130 steps by
-default) and ``lift`` (a scripted wrist command; with arm interface ``none`` it is only logged while the
-fingers hold their targets). Faults stop the loop at once: a device fault or disconnect, a non-finite
-action, ``max_bus_errors`` lost/garbled replies in a row, ``stale_reads`` repeated feedback frames while
-the hand is being moved, ``max_overruns`` late steps in a row, or a policy exception. The exit action is
-``on_exit`` (hold or relax; a second Ctrl-C relaxes at once); if it fails, ``torque_off()`` runs in
-``finally``. A dry run reads but never writes.
+default) and ``lift`` (a scripted wrist command along the arm's base +z while the fingers hold their
+targets). The Kalman-filtered wrist command goes to the arm interface each step (palm frame while the
+policy runs, base frame during the lift; the filter restarts when the lift begins); ``none`` only logs it.
+Faults stop the loop at once: a device or arm fault or disconnect, a non-finite action, ``max_bus_errors``
+lost/garbled replies in a row, ``stale_reads`` repeated feedback frames while the hand is being moved,
+``max_overruns`` late steps in a row, or a policy exception. At exit the arm holds first, then the hand
+takes ``on_exit`` (hold or relax; a second Ctrl-C relaxes at once); if that fails, ``torque_off()`` runs
+in ``finally``. A dry run reads but never writes (hand or arm).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dgz_cli.hw.arm import ArmInterface
 from dgz_cli.hw.driver import HandDriver
 from dgz_cli.hw.errors import TRANSIENT, HardwareError, StaleFeedback
 from dgz_cli.runtime.filters import KalmanCV
@@ -44,7 +47,7 @@ class RunConfig:
     grasp_steps: int = 130
     lift_steps: int = 30
     lift_command: tuple = (0.0, 0.0, 0.01, 0.0, 0.0, 0.0)  # wrist Δ per step while lifting (m, rad)
-    arm: str = "none"
+    arm: str = "none"  # name only (for callers); the arm itself is Runner(arm=...)
     on_exit: str = "hold"
     dry_run: bool = False
     max_bus_errors: int = 3
@@ -65,6 +68,7 @@ class RunResult:
     overruns: int = 0
     bus_errors: int = 0
     exit_action: str = "none"
+    arm_exit: str = "none"
     target: np.ndarray | None = None
     measured: np.ndarray | None = None
     periods: list = field(default_factory=list)
@@ -73,7 +77,7 @@ class RunResult:
 class Runner:
     def __init__(self, driver: HandDriver, spec: HandSpec, policy, cfg: RunConfig | None = None, builder=None,
                  logger: StepLogger | None = None, guard: InterruptGuard | None = None, context: dict | None = None,
-                 clock=time.monotonic, sleep=time.sleep) -> None:
+                 clock=time.monotonic, sleep=time.sleep, arm: ArmInterface | None = None) -> None:
         cfg = cfg or RunConfig()
         if cfg.on_exit not in ("hold", "relax"):
             raise DgzError(f"--on-exit {cfg.on_exit!r} is not supported", "use hold or relax")
@@ -81,7 +85,8 @@ class Runner:
         self.builder = builder or getattr(policy, "observation_builder", None) or ProprioObservation()
         self.log = logger or StepLogger(None)
         self.guard = guard or InterruptGuard()
-        self.context = context or {}
+        self.context = {"rate_hz": cfg.rate_hz, **(context or {})}
+        self.arm = arm or ArmInterface()
         self.clock, self.sleep = clock, sleep
         self.mh = MhMap(spec)
         self.kf = KalmanCV(6, 1.0 / cfg.rate_hz)
@@ -173,9 +178,12 @@ class Runner:
                 raise _StopRequested
             t0 = self.clock()
             phase = "grasp" if k < cfg.grasp_steps else "lift"
+            if k == cfg.grasp_steps:
+                self.kf.reset()  # the lift command is in the base frame: do not blend it with palm-frame motion
             state = self._read()
             if phase == "grasp":
-                obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist_f))
+                obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist_f,
+                                                   self.arm.palm_pose()))
                 raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
                 if getattr(self.policy, "normalized_actions", False) and raw.shape == scale.shape:
                     raw = raw * scale
@@ -183,13 +191,14 @@ class Runner:
                 raw = lift
             cmd = safety.step(raw)
             wrist_f = self.kf.update(cmd.wrist)
+            arm_log = {} if cfg.dry_run else self.arm.command(wrist_f, "palm" if phase == "grasp" else "base")
             self._write(cmd.target)
             last_action = self.mh.join(cmd.wrist, cmd.alpha)
             self.res.steps += 1
             self.res.target = cmd.target
-            self._tick(k, phase, t0, action=raw, wrist_cmd=cmd.wrist, wrist_filtered=wrist_f, arm=cfg.arm,
+            self._tick(k, phase, t0, action=raw, wrist_cmd=cmd.wrist, wrist_filtered=wrist_f, arm=self.arm.name,
                        target=cmd.target, measured=None if state is None else state.q,
-                       effort=None if state is None else state.effort, limited=cmd.limited)
+                       effort=None if state is None else state.effort, limited=cmd.limited, **arm_log)
 
     # -- entry point -------------------------------------------------------------------------------
     def run(self, start_pose: np.ndarray | None = None) -> RunResult:
@@ -202,11 +211,12 @@ class Runner:
             self.builder.reset(self.spec, self.context)
             if hasattr(self.policy, "reset"):
                 self.policy.reset()
-            self.rate = RateLoop(cfg.rate_hz, self.clock, self.sleep)
             if not cfg.dry_run:
                 self.driver.enable()
-                if start_pose is not None:
-                    self._ramp(np.asarray(start_pose, dtype=float))
+                self.arm.enable()
+            self.rate = RateLoop(cfg.rate_hz, self.clock, self.sleep)  # after enabling: that may take a while
+            if not cfg.dry_run and start_pose is not None:
+                self._ramp(np.asarray(start_pose, dtype=float))
             self._episode()
             res.ok, res.exit_code = True, 0
             res.reason = f"completed {res.steps} steps ({cfg.grasp_steps} grasp + {cfg.lift_steps} lift)"
@@ -222,13 +232,22 @@ class Runner:
             res.hint = "this is a bug in the policy or observation builder; the hand was stopped"
         finally:
             if not cfg.dry_run:
+                res.arm_exit = self._arm_exit()
                 res.exit_action = self._safe_exit(immediate)
             rate = getattr(self, "rate", None)
             if rate is not None:
                 res.overruns, res.periods = rate.overruns, list(rate.periods)
             self.log.end(ok=res.ok, exit_code=res.exit_code, reason=res.reason, hint=res.hint, steps=res.steps,
-                         overruns=res.overruns, bus_errors=res.bus_errors, exit_action=res.exit_action)
+                         overruns=res.overruns, bus_errors=res.bus_errors, exit_action=res.exit_action,
+                         arm_exit=res.arm_exit)
         return res
+
+    def _arm_exit(self) -> str:
+        """Stop the arm where it is (first, so the hand is not carried on while it lets go)."""
+        try:
+            return self.arm.hold()
+        except (Exception, KeyboardInterrupt) as exc:
+            return f"failed: {' '.join(str(getattr(exc, 'message', exc)).split())}"
 
     def _safe_exit(self, immediate: bool) -> str:
         want = "relax" if immediate or self.cfg.on_exit == "relax" else "hold"

@@ -37,10 +37,13 @@ class MhMap:
         return self.sign * alpha[self.node, self.prim]
 
 
-def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None) -> np.ndarray:
-    """The pose the hand ramps to before the policy runs: every joint at 0 clipped into its limits (the
-    URDF zero is the flat open hand on the shipped hands), then the hand file's ``start_pose`` entries."""
-    q = np.array([min(max(0.0, j.lower), j.upper) for j in spec.joints], dtype=float)
+def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None, base: np.ndarray | None = None) -> np.ndarray:
+    """The pose the hand ramps to before the policy runs: ``base`` (L,) if given (the thumb-open pose of
+    :mod:`dgz_cli.runtime.pregrasp`), else every joint at 0 clipped into its limits (the URDF zero is the
+    flat open hand on the shipped hands); then the hand file's ``start_pose`` entries, clipped."""
+    lo = np.array([j.lower for j in spec.joints], dtype=float)
+    hi = np.array([j.upper for j in spec.joints], dtype=float)
+    q = np.clip(np.zeros(len(lo)) if base is None else np.asarray(base, dtype=float), lo, hi)
     names = [j.joint for j in spec.joints]
     for name, value in (overrides or {}).items():
         if name not in names:
@@ -48,6 +51,6 @@ def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None) -> np.
 
             raise DgzError(f"start_pose names joint '{name}', which is not in spec '{spec.name}'",
                            "use joint names from the spec's joints[].joint")
-        j = spec.joints[names.index(name)]
-        q[names.index(name)] = min(max(float(value), j.lower), j.upper)
+        i = names.index(name)
+        q[i] = min(max(float(value), lo[i]), hi[i])
     return q

@@ -2,10 +2,12 @@
 
 A policy is any object with ``act(observation) -> np.ndarray`` of ``6 + 3·N_nodes`` numbers (see
 :mod:`dgz_cli.runtime.mapping`), optionally ``reset()``, ``privileged_inputs`` (a set of names; policies
-that need "contact" or "force" are refused on hardware) and ``normalized_actions`` (True when outputs
-are in [-1, 1] and must be multiplied by the action scales 0.01 wrist / 0.015 fingers). Load one by name
-(``scripted``) or by reference ``package.module:factory``; the factory is called with the HandSpec. A policy
-that needs its own observations carries an ``observation_builder`` attribute (used instead of the default).
+that need "contact" or "force" are refused on hardware unless explicitly allowed) and ``normalized_actions``
+(True when outputs are in [-1, 1] and must be multiplied by the action scales 0.01 wrist / 0.015 fingers).
+Load one by name (``scripted``), as a trained checkpoint (a folder, or a name under ``policies/``; see
+:mod:`dgz_cli.runtime.trained`) or by reference ``package.module:factory`` (called with the HandSpec). A
+policy that needs its own observations carries an ``observation_builder`` attribute (used instead of the
+default).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ class StepInput:
     target: np.ndarray           # current joint targets (rad, spec order)
     last_action: np.ndarray      # the previous clipped action
     wrist_command: np.ndarray    # the previous filtered wrist command
+    palm_pose: tuple[np.ndarray, np.ndarray] | None = None  # commanded palm pose in the start palm frame
 
 
 class ObservationBuilder(Protocol):
@@ -47,7 +50,8 @@ class ObservationBuilder(Protocol):
 
 
 class ProprioObservation:
-    """Default builder: a dict of proprioception plus the grasp target point (object centroid) if known.
+    """Default builder: a dict of proprioception plus the grasp target point (object centroid, palm frame at
+    the start) if known.
 
     Trained policies bring their own builder (same two methods) that assembles exactly the tensors the
     network was trained on.
@@ -89,22 +93,34 @@ class ScriptedClosePolicy:
         return a
 
 
+def privileged_needs(policy: Any) -> list[str]:
+    """The privileged inputs (sorted) a policy observes that a real hand cannot provide."""
+    return sorted(PRIVILEGED & set(getattr(policy, "privileged_inputs", ()) or ()))
+
+
 def check_privileged(policy: Any, name: str, allow_privileged: bool = False) -> None:
-    needs = PRIVILEGED & set(getattr(policy, "privileged_inputs", ()) or ())
+    needs = privileged_needs(policy)
     if needs and not allow_privileged:
-        raise DgzError(f"policy '{name}' needs privileged inputs ({', '.join(sorted(needs))}) that a real hand "
+        raise DgzError(f"policy '{name}' needs privileged inputs ({', '.join(needs)}) that a real hand "
                        "does not provide",
-                       "deploy a student policy distilled without contact/force inputs (paper Supp. S2); "
-                       "allow_privileged=True is for simulated dry runs only")
+                       "deploy a student policy distilled without contact/force inputs (paper Supp. S2), or "
+                       "pass --allow-privileged to feed zeros instead (for tests; the policy may misbehave)")
 
 
-def load_policy(ref: str, spec: HandSpec, allow_privileged: bool = False) -> Any:
+def load_policy(ref: str, spec: HandSpec, allow_privileged: bool = False, asset_root: str | None = None) -> Any:
+    """``scripted``, a checkpoint folder or ``policies/`` name, or ``package.module:factory``."""
+    from dgz_cli.runtime.trained import TrainedPolicy, resolve_checkpoint
+
+    checkpoint = None if ref == "scripted" else resolve_checkpoint(ref)
     if ref == "scripted":
         policy: Any = ScriptedClosePolicy(spec)
+    elif checkpoint is not None:
+        policy = TrainedPolicy(checkpoint, spec, ref, allow_privileged=allow_privileged, asset_root=asset_root)
     else:
         module, sep, attr = ref.partition(":")
         if not sep or not module or not attr:
-            raise DgzError(f"unknown policy '{ref}'", "use 'scripted' or a reference package.module:factory")
+            raise DgzError(f"unknown policy '{ref}'", "use 'scripted', a checkpoint folder or a name under "
+                                                      "policies/ (e.g. dgz-cpu-first), or package.module:factory")
         try:
             factory = getattr(importlib.import_module(module), attr)
         except (ImportError, AttributeError) as exc:

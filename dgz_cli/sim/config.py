@@ -17,6 +17,8 @@ class RewardWeights(_Frozen):
     force: float = 0.5
     reg: float = 1.5
     pen: float = 0.3
+    lift: float = Field(0.0, description="not in the paper (0 reproduces it): weight of r_lift, the object's rise "
+                                         "over the lift and hold phases as a fraction of lift_height")
 
 
 class EnvConfig(_Frozen):

@@ -3,6 +3,10 @@
 r = w_dis·r_dis + w_contact·r_contact + w_force·r_force + w_reg·r_reg + w_pen·r_pen with
 r_dis = −Σ_i ‖d_i‖ (m), r_contact = Σ_i c_i, r_force = −Σ_i max(0, f_i − f0)² (f in units of
 force_scale), r_reg = −‖Δq‖ (rad), r_pen = −Σ_i ‖(1 − m_i) ⊙ α_i‖² (α the policy's primitive output).
+
+An optional term that is not in the paper (weight 0 by default): r_lift = clip(rise / lift_height, 0, 1)
+after the grasp phase, rise being the object's height above its settled start. The paper's terms
+reward contact but nothing that needs the object to go up with the hand; r_lift does.
 """
 
 from __future__ import annotations
@@ -11,23 +15,30 @@ import numpy as np
 
 from dgz_cli.sim.config import RewardWeights
 
-TERMS = ("dis", "contact", "force", "reg", "pen")
+TERMS = ("dis", "contact", "force", "reg", "pen", "lift")
 
 
 def reward_terms(d: np.ndarray, contact: np.ndarray, force: np.ndarray, dq: np.ndarray, alpha: np.ndarray,
-                 mask: np.ndarray, node_valid: np.ndarray, f0: float) -> dict[str, np.ndarray]:
+                 mask: np.ndarray, node_valid: np.ndarray, f0: float, rise: np.ndarray | None = None,
+                 lifting: np.ndarray | None = None, lift_height: float = 0.5) -> dict[str, np.ndarray]:
     """Unweighted terms, each (B,). d (B,N,3) m; contact (B,N) bool; force (B,N) scaled; dq (B,L) rad
-    (zero-padded); alpha (B,N,3); mask (B,N,3); node_valid (B,N) bool."""
+    (zero-padded); alpha (B,N,3); mask (B,N,3); node_valid (B,N) bool; rise (B,) m and lifting (B,) bool
+    (after the grasp phase) for r_lift, which is 0 without them."""
     v = node_valid.astype(np.float64)
+    lift = (np.zeros(d.shape[0]) if rise is None or lifting is None
+            else np.clip(rise / lift_height, 0.0, 1.0) * lifting)
     return {
         "dis": -(np.linalg.norm(d, axis=-1) * v).sum(-1),
         "contact": (contact * v).sum(-1),
         "force": -((np.maximum(0.0, force - f0) ** 2) * v).sum(-1),
         "reg": -np.linalg.norm(dq, axis=-1),
         "pen": -((((1.0 - mask) * alpha) ** 2).sum(-1) * v).sum(-1),
+        "lift": lift,
     }
 
 
 def total(terms: dict[str, np.ndarray], w: RewardWeights, use_pen: bool = True) -> np.ndarray:
     r = w.dis * terms["dis"] + w.contact * terms["contact"] + w.force * terms["force"] + w.reg * terms["reg"]
+    if w.lift:
+        r = r + w.lift * terms["lift"]
     return r + (w.pen * terms["pen"] if use_pen else 0.0)

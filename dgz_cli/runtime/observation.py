@@ -1,0 +1,129 @@
+"""The trained policy's observation, built on hardware with the training env's own feature functions.
+
+Same layout as :meth:`dgz_cli.sim.env.GraspEnv._observe` for one hand (batch of 1, N nodes, L joints):
+``nodes`` (1, N, 23), ``global`` (1, 16), ``adjacency`` (1, N, N), ``physical`` (1, N, 27), ``mask``
+(1, N, 3), ``node_valid`` (1, N); static parts from :func:`dgz_cli.sim.scene.static_graph`, features from
+:mod:`dgz_cli.sim.observe` (``node_features``, ``global_features``, ``primitive_state``, ``projection``,
+``nearest_surface``, ``to_frame``, ``rotation_delta``). Where the env reads the simulator, this reads:
+
+* θ: measured joint positions; θ̇: finite differences of successive readings (device time stamps).
+* node anchors and the palm frame: forward kinematics of the hand alone (:mod:`.kinematics`).
+* d and Δp: the object point cloud from ``--object-points``, fixed at the start (the paper reuses the
+  first perception frame and assumes the object does not move), against the anchors moved by the
+  *commanded* palm motion (the arm interface's ``palm_pose``; ``--arm none`` never moves the palm).
+* wrist velocity: the commanded palm motion per control period; object velocity: 0 (static object).
+* contact flags and forces: 0 — a real hand has no such sensors (privileged inputs, see ``trained.py``).
+* lift flag: 0 (the runtime stops the policy when the scripted lift begins).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dgz_cli.runtime.kinematics import HandKinematics
+from dgz_cli.runtime.policy import StepInput
+from dgz_cli.spec.errors import DgzError
+from dgz_cli.spec.models import HandSpec
+
+MAX_POINTS = 4096
+FORMAT_HINT = ("give a .npy array of shape (P, 3) or a text file with one 'x y z' line per point: metres, "
+               "in the palm frame (origin palm centre, axes f, l, n) of the hand at its start pose")
+
+
+def load_object_points(path: Path) -> np.ndarray:
+    """(P, 3) object surface points (m, palm frame at the start pose) from .npy or text; at most
+    ``MAX_POINTS`` are kept (every k-th). One-line errors name the file and what is wrong."""
+    path = Path(path)
+    if not path.is_file():
+        raise DgzError(f"{path}: no such point-cloud file", FORMAT_HINT)
+    try:
+        if path.suffix == ".npy":
+            pts = np.load(path, allow_pickle=False)
+        else:
+            pts = np.loadtxt(path.read_text(encoding="utf-8").replace(",", " ").splitlines(), ndmin=2)
+    except (ValueError, OSError, UnicodeDecodeError) as exc:
+        raise DgzError(f"{path}: cannot read points ({' '.join(str(exc).split())})", FORMAT_HINT) from None
+    if np.asarray(pts).dtype.kind not in "fiu":
+        raise DgzError(f"{path}: holds {np.asarray(pts).dtype} values, not numbers", FORMAT_HINT)
+    pts = np.asarray(pts, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+        raise DgzError(f"{path}: expected K×3 points, got shape {pts.shape}", FORMAT_HINT)
+    if not np.all(np.isfinite(pts)):
+        raise DgzError(f"{path}: {int(np.sum(~np.isfinite(pts)))} non-finite values", "drop NaN/inf rows")
+    far = float(np.linalg.norm(pts.mean(0)))
+    if far > 2.0:
+        raise DgzError(f"{path}: the points' centroid is {far:.1f} m from the palm centre",
+                       "the file must be in metres in the palm frame (millimetres or a camera frame?)")
+    step = int(np.ceil(len(pts) / MAX_POINTS))
+    return pts[::step]
+
+
+class HardwareObservation:
+    """Observation builder for a trained MAGCN (``reset(spec, context)`` / ``build(StepInput)``).
+
+    ``context``: ``object_points`` (P, 3) palm frame at the start (required), ``rate_hz`` (control rate).
+    """
+
+    def __init__(self, spec: HandSpec, distance_clip: float, force_scale: float, asset_root: str | None = None,
+                 kin: HandKinematics | None = None) -> None:
+        from dgz_cli.sim import observe
+        from dgz_cli.sim.scene import static_graph
+
+        self.ob, self.spec = observe, spec
+        self.kin = kin or HandKinematics.for_spec(spec, asset_root)
+        self.distance_clip, self.force_scale = distance_clip, force_scale
+        g = static_graph(spec)
+        n = len(spec.nodes)
+        self.static = {"adjacency": g["adjacency"][None], "physical": g["physical"][None], "mask": g["mask"][None],
+                       "node_valid": np.ones((1, n), bool)}
+        self.finger, self.node_type = g["finger"][None], g["node_type"][None]
+        self.proj = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)[None]  # (1, 3N, L)
+        self.n = n
+
+    def reset(self, spec: HandSpec, context: dict) -> None:
+        pts = context.get("object_points")
+        if pts is None:
+            raise DgzError("a trained policy needs the object: no --object-points given", FORMAT_HINT)
+        self.cloud = np.asarray(pts, dtype=float).reshape(1, -1, 3)      # (1, P, 3) start palm frame
+        self.center = self.cloud[0].mean(0)                               # (3,)
+        self.dt = 1.0 / float(context.get("rate_hz", 20.0))
+        self.prev_q: np.ndarray | None = None
+        self.prev_stamp = 0.0
+        self.prev_p, self.prev_r = np.zeros(3), np.eye(3)
+
+    def _joints(self, step: StepInput) -> tuple[np.ndarray, np.ndarray]:
+        """(q (L,), q̇ (L,)): the reading, or the last one with zero velocity when this read failed."""
+        s = step.state
+        if s is None:
+            q = self.prev_q if self.prev_q is not None else step.target
+            return q, np.zeros_like(q)
+        q = np.asarray(s.q, dtype=float)
+        if self.prev_q is None:
+            qd = np.zeros_like(q)
+        else:
+            dt = s.stamp - self.prev_stamp
+            dt = dt if 0.5 * self.dt <= dt <= 5.0 * self.dt else self.dt  # no/odd stamps: the nominal period
+            qd = (q - self.prev_q) / dt
+        self.prev_q, self.prev_stamp = q, s.stamp
+        return q, qd
+
+    def build(self, step: StepInput) -> dict[str, np.ndarray]:
+        ob = self.ob
+        q, qd = self._joints(step)
+        p, r = step.palm_pose if step.palm_pose is not None else (np.zeros(3), np.eye(3))
+        nodes = (p + self.kin.anchors_palm(q) @ r.T)[None]               # (1, N, 3) start palm frame
+        d = ob.nearest_surface(nodes, np.zeros((1, 3)), np.eye(3)[None], self.cloud)
+        rot = r[None]
+        v_w = ((p - self.prev_p) / self.dt)[None]
+        w_w = ob.rotation_delta(self.prev_r[None], rot) / self.dt
+        self.prev_p, self.prev_r = p, r
+        zeros3 = np.zeros((1, 3))
+        glob = ob.global_features(ob.to_frame((self.center - p)[None], rot), ob.to_frame(v_w, rot),
+                                  ob.to_frame(w_w, rot), zeros3, zeros3, np.zeros(1, bool))
+        none = np.zeros((1, self.n))
+        x = ob.node_features(ob.to_frame(d, rot), ob.primitive_state(q[None], self.proj),
+                             ob.primitive_state(qd[None], self.proj), none > 0, none, self.finger, self.node_type,
+                             self.static["node_valid"], self.distance_clip, self.force_scale)
+        return {"nodes": x, "global": glob, **self.static}

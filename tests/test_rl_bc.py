@@ -1,0 +1,79 @@
+"""Behaviour-cloning warm start: returns by hand, the clone imitates the scripted grasp, the run records it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dgz_cli.policy.graph import action_valid
+from dgz_cli.policy.magcn import MAGCN
+from dgz_cli.policy.presets import get_preset
+from dgz_cli.rl import bc
+from dgz_cli.rl.config import TrainConfig
+from dgz_cli.rl.normalize import ReturnNormalizer
+from dgz_cli.rl.runner import Trainer, load_policy
+from dgz_cli.sim.env import GraspEnv
+from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.spec.catalog import resolve_spec
+from dgz_cli.spec.io import load_spec
+
+
+def test_discounted_returns_by_hand():
+    r = np.array([[1.0, 2.0], [1.0, 0.0], [1.0, 4.0]])
+    done = np.array([[False, False], [True, False], [False, False]])
+    g = bc.discounted_returns(r, done, 0.5)
+    # slot 0: the episode ends at t=1, so G_1 = 1, G_0 = 1 + 0.5·1; G_2 = 1 (nothing after)
+    # slot 1: G_2 = 4, G_1 = 0 + 0.5·4 = 2, G_0 = 2 + 0.5·2 = 3
+    np.testing.assert_allclose(g, [[1.5, 3.0], [1.0, 2.0], [1.0, 4.0]])
+
+
+@pytest.fixture(scope="module")
+def demos():
+    spec = load_spec(resolve_spec("dgz_tri"))
+    env = GraspEnv([(spec, o) for o in resolve_objects("sphere,box")], threads=1)
+    d = bc.collect(env, 1, ReturnNormalizer(env.B, 0.996), 0.996, seed=3)
+    env.close()
+    return d
+
+
+def test_collect_shapes_and_whole_episodes(demos):
+    T, B = demos.actions.shape[:2]
+    assert (T, B) == (190, 2) and demos.episodes == 2
+    assert demos.nodes.shape[:2] == (T, B) and demos.global_.shape == (T, B, 16)
+    assert torch.isfinite(demos.returns).all()
+    # the scripted grasp approaches first (wrist +n), then closes (+FLEX on active axes)
+    assert (demos.actions[0, :, 2] == 1).all()
+    assert (demos.actions[-1, :, 6:] > 0).any()
+
+
+def test_pretrain_makes_the_policy_imitate_the_teacher(demos):
+    torch.manual_seed(0)
+    model = MAGCN(get_preset("compact"))
+    T, B = demos.actions.shape[:2]
+    t, b = torch.arange(T).repeat_interleave(B), torch.arange(B).repeat(T)
+    obs = demos.obs(t, b)
+    av = action_valid(obs["node_valid"]).float()
+
+    def error() -> float:
+        with torch.no_grad():
+            mean = model(obs)[0]
+        return float((((mean - demos.actions[t, b]) ** 2) * av).sum() / av.sum())
+
+    before = error()
+    stats = bc.pretrain(model, demos, epochs=30, mini_batch=128, learning_rate=1e-3, log_std=-1.2, seed=0)
+    after = error()
+    assert after < 0.25 * before, (before, after)
+    assert abs(stats["bc_action_loss"] - after) < 0.1
+    assert torch.allclose(model.log_std_prim, torch.full_like(model.log_std_prim, -1.2))
+
+
+def test_training_with_warm_start_records_it(tmp_path):
+    cfg = TrainConfig(hands=("dgz_tri",), objects="sphere", repeat=1, steps_per_env=20, iterations=1, seed=0,
+                      bc_episodes=1, bc_epochs=2)
+    seen = []
+    Trainer(cfg, tmp_path, None, on_warm_start=seen.append).train()
+    _, meta = load_policy(tmp_path)
+    assert meta["train"]["bc_episodes"] == 1 and meta["warm_start"]["teacher"] == "scripted"
+    assert meta["warm_start"]["episodes"] == 1 and seen == [meta["warm_start"]]
+    assert meta["privileged_inputs"] == ["contact", "force"]
