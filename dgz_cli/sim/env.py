@@ -24,7 +24,7 @@ from dgz_cli.sim.config import EnvConfig
 from dgz_cli.sim.objects import ObjectModel
 from dgz_cli.sim.reward import TERMS, reward_terms, total
 from dgz_cli.sim.scene import build_scene, static_graph
-from dgz_cli.sim.slot import Slot
+from dgz_cli.sim.slot import Slot, contact_table
 from dgz_cli.spec.models import HandSpec
 
 
@@ -34,13 +34,22 @@ class GraspEnv:
         self.cfg, self.use_pen, self.seed = cfg, use_pen, seed
         cache: dict[tuple[str, str], tuple] = {}
         self.slots: list[Slot] = []
+        model_of = []
         for spec, obj in pairs:
             key = (spec.name, obj.name)
             if key not in cache:
                 model, index, _ = build_scene(spec, obj, cfg, asset_root, seed)
-                cache[key] = (model, index)
-            model, index = cache[key]
-            self.slots.append(Slot(spec, obj, model, index, cfg))  # slots share the (hand, object) model
+                cache[key] = (model, index, contact_table(model, index), len(cache))
+            model, index, pair_node, m = cache[key]
+            self.slots.append(Slot(spec, obj, model, index, cfg, pair_node))  # slots share the (hand, object) model
+            model_of.append(m)
+        # contact (geom1, geom2) → node tables of all models, padded, for the batched contact forces
+        tables = [v[2] for v in cache.values()]
+        g = max(len(t) for t in tables)
+        self._pair_node = np.full((len(tables), g, g), -1, np.int16)
+        for m, t in enumerate(tables):
+            self._pair_node[m, :len(t), :len(t)] = t
+        self._model_of = np.array(model_of)
         self.B = len(self.slots)
         self.N = max(len(s.spec.nodes) for s in self.slots)
         self.L = max(s.n_joints for s in self.slots)
@@ -62,8 +71,7 @@ class GraspEnv:
         B, N, L = self.B, self.N, self.L
         self.buf = dict(xpos=np.zeros((B, N + 2, 3)), xmat=np.tile(np.eye(3).reshape(9), (B, N + 2, 1)),
                         q=np.zeros((B, L)), qd=np.zeros((B, L + 6)), force=np.zeros((B, N)), wq=np.zeros((B, 6)))
-        for s in self.slots:
-            s.bind(N, L)
+        self._raw_buffers()
         self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
         self.grasp_offset = np.stack([s.idx.grasp_offset for s in self.slots])  # (B, 3) palm frame
@@ -107,6 +115,97 @@ class GraspEnv:
             self.proj[b, :3 * n, :l] = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)
             self.node_point[b, :n] = s.idx.node_point
             self.cloud[b] = s.idx.cloud
+        self.cloud_pre = observe.cloud_terms(self.cloud)  # constants of observe.nearest_surface
+        self.cloud_sum = self.cloud.sum(axis=1)  # (B, 3): the object centre is obj_pos + R · cloud_sum / P
+        self.static_nodes = observe.static_features(self.finger, self.node_type, self.node_valid)
+
+    def _raw_buffers(self) -> None:
+        """Per-slot copies of whole MjData arrays (written by the worker threads, one contiguous copy each)
+        and flat index arrays that pick what the observation needs for the whole batch in one ``np.take``.
+        ``buf`` rows of ``xpos`` / ``xmat``: the N node bodies (padded), then the object body, then the palm
+        body; ``q`` (B, L) hand joints, ``wq`` (B, 6) wrist joints, ``qd`` (B, L + 6) hand joint then
+        object velocities; padding points at an extra all-zero (``xmat``: identity) row / column."""
+        B, N, L = self.B, self.N, self.L
+        nb = max(s.model.nbody for s in self.slots) + 1  # + a padding body
+        nq = max(s.model.nq for s in self.slots) + 1
+        nv = max(s.model.nv for s in self.slots) + 1
+        self.raw = dict(xpos=np.zeros((B, nb, 3)), xmat=np.zeros((B, nb, 9)), qpos=np.zeros((B, nq)),
+                        qvel=np.zeros((B, nv)))
+        self.raw["xmat"][:, nb - 1] = np.eye(3).reshape(9)
+        self._take_body = np.full((B, N + 2), nb - 1)
+        self._take_q = np.full((B, L), nq - 1)
+        self._take_wq = np.zeros((B, 6), np.int64)
+        self._take_qd = np.full((B, L + 6), nv - 1)
+        for b, s in enumerate(self.slots):
+            idx, n, l = s.idx, len(s.spec.nodes), s.n_joints
+            self._take_body[b, :n] = idx.node_body
+            self._take_body[b, N:] = idx.object_body, idx.palm_body
+            self._take_q[b, :l] = idx.hand_qadr
+            self._take_wq[b] = idx.wrist_qadr
+            self._take_qd[b, :l] = idx.hand_dadr
+            self._take_qd[b, L:] = np.arange(idx.object_dadr, idx.object_dadr + 6)
+            s.bind(self.raw["xpos"][b], self.raw["xmat"][b], self.raw["qpos"][b], self.raw["qvel"][b],
+                   self.buf["force"][b, :n], stash_contacts=True)
+        self._take_body += np.arange(B)[:, None] * nb  # flat indices into the (B * rows, ...) raw arrays
+        self._take_q += np.arange(B)[:, None] * nq
+        self._take_wq += np.arange(B)[:, None] * nq
+        self._take_qd += np.arange(B)[:, None] * nv
+
+    def _assemble(self, rows: slice) -> None:
+        """Fill ``buf`` rows (a slice with start and stop) from what the slots' ``gather`` left: poses and
+        joints with five ``np.take`` over the rows, contact forces with one lookup and one ``bincount``
+        over all their contacts."""
+        self._contact_forces(rows)
+        raw, buf = self.raw, self.buf
+        np.take(raw["xpos"].reshape(-1, 3), self._take_body[rows], axis=0, out=buf["xpos"][rows])
+        np.take(raw["xmat"].reshape(-1, 9), self._take_body[rows], axis=0, out=buf["xmat"][rows])
+        qpos = raw["qpos"].reshape(-1)
+        np.take(qpos, self._take_q[rows], out=buf["q"][rows])
+        np.take(qpos, self._take_wq[rows], out=buf["wq"][rows])
+        np.take(raw["qvel"].reshape(-1), self._take_qd[rows], out=buf["qd"][rows])
+
+    def _contact_forces(self, rows: slice) -> None:
+        """``buf["force"]`` rows: per node, the summed normal force (the first row of an elliptic cone, N) of
+        its hand–object contacts, from the contacts the slots stashed, for all of them at once: one table
+        lookup and one ``bincount``, which adds in contact order from 0 like a per-contact loop. Slots that
+        do not stash (pyramidal cones) wrote their own rows in ``gather``."""
+        lo, hi, N = rows.start, rows.stop, self.N
+        slots = self.slots[lo:hi]
+        stash = [(b, s.con) for b, s in zip(range(lo, hi), slots) if s.stash_contacts and s.con is not None]
+        out = np.zeros((hi - lo) * N)
+        if stash:
+            count = [len(c[1]) for _, c in stash]
+            slot = np.repeat([b for b, _ in stash], count)
+            geom = np.concatenate([c[0] for _, c in stash])
+            adr = np.concatenate([c[1] for _, c in stash])
+            efc = [c[2] for _, c in stash]
+            base = np.repeat(np.cumsum([0] + [len(e) for e in efc[:-1]]), count)  # each slot's offset in efc
+            node = self._pair_node[self._model_of[slot], geom[:, 0], geom[:, 1]]
+            sel = (node >= 0) & (adr >= 0)
+            if sel.any():
+                out = np.bincount((slot[sel] - lo) * N + node[sel], weights=np.concatenate(efc)[adr[sel] + base[sel]],
+                                  minlength=(hi - lo) * N)
+        out = out.reshape(hi - lo, N)
+        if all(s.stash_contacts for s in slots):
+            self.buf["force"][rows] = out
+        else:
+            mine = np.array([s.stash_contacts for s in slots])
+            self.buf["force"][lo:hi][mine] = out[mine]
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The raw quantities the observation is built from, batched (copies; for tests and debugging):
+        ``nodes`` (B, N, 3) node anchors, ``palm_pos`` (B, 3) / ``palm_rot`` (B, 3, 3) palm centre and
+        frame (f, l, n columns), ``obj_pos`` (B, 3), ``obj_rot`` (B, 3, 3), ``obj_vel`` (B, 6) (free joint
+        velocities), ``q`` / ``qd`` (B, L), ``wq`` (B, 6), ``force`` (B, N) contact normal force per node (N)."""
+        B, N, L, buf = self.B, self.N, self.L, self.buf
+        xmat = buf["xmat"].reshape(B, N + 2, 3, 3)
+        palm_link_rot = xmat[:, N + 1]
+        return dict(
+            nodes=observe.node_positions(buf["xpos"][:, :N], xmat[:, :N], self.node_point),
+            palm_rot=palm_link_rot @ self.palm_axes,
+            palm_pos=buf["xpos"][:, N + 1] + np.einsum("bij,bj->bi", palm_link_rot, self.palm_center),
+            obj_pos=buf["xpos"][:, N].copy(), obj_rot=xmat[:, N].copy(), obj_vel=buf["qd"][:, L:].copy(),
+            q=buf["q"].copy(), qd=buf["qd"][:, :L].copy(), wq=buf["wq"].copy(), force=buf["force"].copy())
 
     @property
     def action_dim(self) -> int:
@@ -135,7 +234,8 @@ class GraspEnv:
         self.max_rise[b] = 0.0
         for v in self.term_sums.values():
             v[b] = 0.0
-        s.gather(self.buf, b)
+        s.gather()
+        self._assemble(slice(b, b + 1))
         self.z0[b] = s.z0
         rot = self.buf["xmat"][b, self.N + 1].reshape(3, 3)
         self.prev_rot[b] = rot @ self.palm_axes[b]
@@ -180,11 +280,12 @@ class GraspEnv:
         force = self.buf["force"].copy()
         contact = force > 1e-6
         obs, d_world, obj_z = self._observe()
+        rise = obj_z - self.z0
         terms = reward_terms(d_world, contact, force / cfg.force_scale, dq, alpha, self.mask, self.node_valid,
-                             cfg.force_threshold)
+                             cfg.force_threshold, rise=rise, lifting=self.t > cfg.grasp_steps,
+                             lift_height=cfg.lift_height)
         reward = total(terms, cfg.reward, self.use_pen)
         reward[~ok] = 0.0
-        rise = obj_z - self.z0
         self.max_rise = np.maximum(self.max_rise, rise)
         risen = rise >= cfg.success_fraction * cfg.lift_height
         holding = self.t > cfg.grasp_steps + cfg.lift_steps
@@ -211,20 +312,25 @@ class GraspEnv:
         return obs, reward.astype(np.float32), done & ok, ~ok, info
 
     def _physics(self) -> np.ndarray:
+        """Step every slot one control period on the worker threads (MuJoCo releases the GIL); each slot
+        copies its raw state right after its step, overlapping the other thread's physics. Then the
+        batch buffers are picked from those copies, vectorized. Returns the per-slot stability flags."""
         ctrl = np.concatenate([self.wrist_target, self.targets], axis=1)
         ok = np.ones(self.B, bool)
+        slots = self.slots
 
         def run(chunk: list[int]) -> None:
             for b in chunk:
-                s = self.slots[b]
-                ok[b] = s.step(ctrl[b, :6 + s.n_joints])
-                s.gather(self.buf, b)
+                s = slots[b]
+                ok[b] = s.advance(ctrl[b, :6 + s.n_joints])
+                s.gather()
 
         if self.pool is None:
             run(list(range(self.B)))
         else:
             list(self.pool.map(run, self.chunks))
-        return ok
+        self._assemble(slice(0, self.B))
+        return ok & np.isfinite(self.raw["qpos"]).all(axis=1)  # NaN anywhere in the slot's qpos
 
     # ---------------------------------------------------------------- observation
     def _observe(self):
@@ -235,17 +341,19 @@ class GraspEnv:
         B, N, L = self.B, self.N, self.L
         xpos, xmat = buf["xpos"], buf["xmat"].reshape(B, N + 2, 3, 3)
         body_pos, body_rot, q, qd = xpos[:, :N], xmat[:, :N], buf["q"], buf["qd"][:, :L]
-        obj_pos, obj_rot, obj_vel = xpos[:, N].copy(), xmat[:, N].copy(), buf["qd"][:, L:]
+        obj_pos, obj_rot, obj_vel = xpos[:, N], xmat[:, N], buf["qd"][:, L:]
         palm_link_rot = xmat[:, N + 1]
         palm_rot = palm_link_rot @ self.palm_axes
         palm_pos = xpos[:, N + 1] + np.einsum("bij,bj->bi", palm_link_rot, self.palm_center)
         nodes = observe.node_positions(body_pos, body_rot, self.node_point)
-        d_world = observe.nearest_surface(nodes, obj_pos, obj_rot, self.cloud) * self.node_valid[..., None]
+        d_world = observe.nearest_surface(nodes, obj_pos, obj_rot, self.cloud, self.cloud_pre)
+        d_world *= self.node_valid[..., None]
         dt = 1.0 / cfg.control_hz
         v_w = (palm_pos - self.prev_palm) / dt
         w_w = observe.rotation_delta(self.prev_rot, palm_rot) / dt
         self.prev_palm, self.prev_rot = palm_pos, palm_rot
-        center = obj_pos + np.einsum("bij,bpj->bi", obj_rot, self.cloud) / self.cloud.shape[1]
+        # the cloud's centroid: R · Σp / P (the same up to rounding as averaging the rotated points)
+        center = obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1]
         lift = self.t >= cfg.grasp_steps
         glob = observe.global_features(
             observe.to_frame(center - palm_pos, palm_rot), observe.to_frame(v_w, palm_rot),
@@ -253,7 +361,8 @@ class GraspEnv:
             observe.to_frame(np.einsum("bij,bj->bi", obj_rot, obj_vel[:, 3:]), palm_rot), lift)
         x = observe.node_features(observe.to_frame(d_world, palm_rot), observe.primitive_state(q, self.proj),
                                   observe.primitive_state(qd, self.proj), contact, force, self.finger,
-                                  self.node_type, self.node_valid, cfg.distance_clip, cfg.force_scale)
+                                  self.node_type, self.node_valid, cfg.distance_clip, cfg.force_scale,
+                                  static=self.static_nodes)
         obs = dict(nodes=x, global_=glob, adjacency=self.adjacency, physical=self.physical, mask=self.mask,
                    node_valid=self.node_valid)
         obs["global"] = obs.pop("global_")

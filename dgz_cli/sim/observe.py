@@ -24,16 +24,27 @@ def node_positions(body_pos: np.ndarray, body_rot: np.ndarray, point: np.ndarray
     return body_pos + np.einsum("bnij,bnj->bni", body_rot, point)
 
 
-def nearest_surface(nodes: np.ndarray, obj_pos: np.ndarray, obj_rot: np.ndarray, cloud: np.ndarray) -> np.ndarray:
+def nearest_surface(nodes: np.ndarray, obj_pos: np.ndarray, obj_rot: np.ndarray, cloud: np.ndarray,
+                    pre: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(B,N,3) world vectors from each node to its nearest cloud point.
 
-    nodes (B,N,3) world; obj_pos (B,3); obj_rot (B,3,3); cloud (B,P,3) in the object frame.
+    nodes (B,N,3) world; obj_pos (B,3); obj_rot (B,3,3); cloud (B,P,3) in the object frame;
+    ``pre`` = ``cloud_terms(cloud)``, to pass when the clouds do not change between calls.
     """
     local = np.einsum("bni,bij->bnj", nodes - obj_pos[:, None], obj_rot)  # world → object frame
-    d2 = (cloud ** 2).sum(-1)[:, None, :] - 2.0 * (local @ cloud.transpose(0, 2, 1))  # (B,N,P), + |x|² dropped
+    cloud_sq, cloud_m2 = cloud_terms(cloud) if pre is None else pre
+    # |c|² − 2 x·c (+ |x|², the same for every c, dropped); scaling by −2 is exact: = |c|² − 2 (x @ cᵀ)
+    d2 = local @ cloud_m2.transpose(0, 2, 1)  # (B,N,P)
+    d2 += cloud_sq
     idx = d2.argmin(-1)
-    nearest = np.take_along_axis(cloud, idx[..., None].repeat(3, -1), axis=1)  # (B,N,3)
+    b, p = cloud.shape[:2]
+    nearest = cloud.reshape(-1, 3)[idx + (np.arange(b) * p)[:, None]]  # (B,N,3)
     return np.einsum("bij,bnj->bni", obj_rot, nearest - local)
+
+
+def cloud_terms(cloud: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-cloud constants of :func:`nearest_surface`: (B,1,P) squared norms and −2 × the points (B,P,3)."""
+    return (cloud ** 2).sum(-1)[:, None, :], -2.0 * cloud
 
 
 def to_frame(vec: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -65,17 +76,26 @@ def projection(joint_node: np.ndarray, joint_prim: np.ndarray, joint_sign: np.nd
 
 def node_features(d: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray, contact: np.ndarray, force: np.ndarray,
                   finger: np.ndarray, node_type: np.ndarray, valid: np.ndarray, distance_clip: float,
-                  force_scale: float) -> np.ndarray:
-    """Assemble (B,N,NODE_DIM) float32 node features; padded nodes are zero."""
-    x = np.concatenate([
-        clip_norm(d, distance_clip) / distance_clip,
-        theta / np.pi,
-        np.clip(theta_dot / 10.0, -1.0, 1.0),
-        contact[..., None].astype(np.float64),
-        np.clip(force / force_scale, 0.0, 5.0)[..., None],
-        finger, node_type,
-    ], axis=-1)
-    return (x * valid[..., None]).astype(np.float32)
+                  force_scale: float, static: np.ndarray | None = None) -> np.ndarray:
+    """Assemble (B,N,NODE_DIM) float32 node features; padded nodes are zero. ``static`` (B,N,12): the
+    one-hot columns already masked (``static_features``), to pass when they do not change between calls.
+    Each block is computed in float64, masked and rounded to float32 column-wise (the same numbers as
+    concatenating in float64, masking and casting, without the (B,N,23) float64 temporaries)."""
+    v = valid[..., None]
+    x = np.empty(d.shape[:2] + (NODE_DIM,), dtype=np.float32)
+    x[..., COL_D:COL_THETA] = clip_norm(d, distance_clip) / distance_clip * v
+    x[..., COL_THETA:COL_THETA_DOT] = theta / np.pi * v
+    x[..., COL_THETA_DOT:COL_CONTACT] = np.clip(theta_dot / 10.0, -1.0, 1.0) * v
+    x[..., COL_CONTACT] = contact * valid
+    x[..., COL_FORCE] = np.clip(force / force_scale, 0.0, 5.0) * valid
+    x[..., COL_FINGER:] = static_features(finger, node_type, valid) if static is None else static
+    return x
+
+
+def static_features(finger: np.ndarray, node_type: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(B,N,12) float32: finger-class and node-type one-hots, zero on padded nodes."""
+    x = np.concatenate([finger, node_type], axis=-1).astype(np.float64) * valid[..., None]
+    return x.astype(np.float32)
 
 
 def global_features(dp: np.ndarray, v_w: np.ndarray, w_w: np.ndarray, v_o: np.ndarray, w_o: np.ndarray,

@@ -27,7 +27,8 @@ class Slot:
     """A (hand, object) scene and its own MjData. Slots of the same (hand, object) share one MjModel:
     resets only set joint values (the wrist slides hold the position, its hinges the orientation)."""
 
-    def __init__(self, spec: HandSpec, obj: ObjectModel, model, index: SceneIndex, cfg: EnvConfig) -> None:
+    def __init__(self, spec: HandSpec, obj: ObjectModel, model, index: SceneIndex, cfg: EnvConfig,
+                 pair_node: np.ndarray | None = None) -> None:
         import mujoco
 
         self.mj = mujoco
@@ -36,8 +37,14 @@ class Slot:
         self.data = mujoco.MjData(model)
         self.n_joints = len(index.hand_qadr)
         self.obj_geom = model.geom_bodyid == index.object_body
-        self._bodies = np.r_[index.node_body, index.object_body, index.palm_body]
-        self._dofs = np.r_[index.hand_dadr, np.arange(index.object_dadr, index.object_dadr + 6)]
+        self.pair_node = contact_table(model, index) if pair_node is None else pair_node
+        self._elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+        self._period = cfg.substeps * model.opt.timestep
+        self._ctrl = self.data.ctrl  # views into MjData stay valid: its arrays are never reallocated
+        self._copies: tuple = ()
+        self._force = np.zeros(len(index.node_body))
+        self.stash_contacts = False
+        self.con: tuple | None = None  # (geom pairs, efc addresses, efc_force) views, see ``gather``
         self.z0 = 0.0
         self.wrist_q0 = np.zeros(6)  # wrist joint values at the end of the last reset
         wid = index.wrist_body
@@ -45,11 +52,17 @@ class Slot:
         self.base = model.body_pos[wid].copy()
         self.hinge_axes = index.palm_axes_w.T  # f, l, n in the mount frame
 
-    def bind(self, n_max: int, l_max: int) -> None:
-        """Destination rows in the env's padded buffers (N nodes, L joints)."""
-        n, l = len(self.idx.node_body), self.n_joints
-        self._dest = np.r_[np.arange(n), n_max, n_max + 1]
-        self._vdest = np.r_[np.arange(l), l_max + np.arange(6)]
+    def bind(self, xpos: np.ndarray, xmat: np.ndarray, qpos: np.ndarray, qvel: np.ndarray, force: np.ndarray,
+             stash_contacts: bool = False) -> None:
+        """Where :meth:`gather` copies this slot's raw state: rows of the env's per-slot buffers, at least
+        (nbody, 3), (nbody, 9), (nq,), (nv,) long, and its (n_nodes,) contact-force row. With
+        ``stash_contacts`` (elliptic cones only) :meth:`gather` leaves the contacts in ``con`` for the env
+        to turn into forces for many slots at once, and does not touch ``force``."""
+        d, m = self.data, self.model
+        self._copies = ((xpos[:m.nbody], d.xpos), (xmat[:m.nbody], d.xmat), (qpos[:m.nq], d.qpos),
+                        (qvel[:m.nv], d.qvel))
+        self._force = force
+        self.stash_contacts = stash_contacts and self._elliptic
 
     # -- reset -------------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> None:
@@ -89,40 +102,63 @@ class Slot:
     def step(self, ctrl: np.ndarray) -> bool:
         """Run one control period; returns False if MuJoCo became unstable (NaN, or the automatic
         reset MuJoCo performs on a bad acceleration, which sends ``data.time`` backwards)."""
-        d = self.data
-        d.ctrl[:len(ctrl)] = ctrl
-        expected = d.time + self.cfg.substeps * self.model.opt.timestep
-        self.mj.mj_step(self.model, d, nstep=self.cfg.substeps)
-        return abs(d.time - expected) < 1e-6 and bool(np.isfinite(d.qpos).all())
+        return self.advance(ctrl) and bool(np.isfinite(self.data.qpos).all())
 
-    def gather(self, buf: dict[str, np.ndarray], b: int) -> None:
-        """Copy this slot's raw state into row ``b`` of the env's batch buffers (runs in a worker
-        thread right after stepping, so it overlaps the other thread's physics). Rows of ``xpos`` /
-        ``xmat``: the N node bodies (padded), then the object body, then the palm body."""
+    def advance(self, ctrl: np.ndarray) -> bool:
+        """:meth:`step` without the NaN check (the env checks the gathered ``qpos`` of the whole batch)."""
         d = self.data
-        buf["xpos"][b, self._dest] = d.xpos[self._bodies]
-        buf["xmat"][b, self._dest] = d.xmat[self._bodies]
-        buf["q"][b, :self.n_joints] = d.qpos[self.idx.hand_qadr]
-        buf["wq"][b] = d.qpos[self.idx.wrist_qadr]
-        buf["qd"][b, self._vdest] = d.qvel[self._dofs]
-        force = buf["force"][b]
-        force[:] = 0.0
-        if d.ncon:
-            self.contacts(force)
+        self._ctrl[:len(ctrl)] = ctrl
+        expected = d.time + self._period
+        self.mj.mj_step(self.model, d, nstep=self.cfg.substeps)
+        return abs(d.time - expected) < 1e-6
+
+    def gather(self) -> None:
+        """Copy this slot's raw state (whole ``xpos``, ``xmat``, ``qpos``, ``qvel``: one contiguous copy
+        each) into the rows given to :meth:`bind`, and its contacts: views of the contacts' geom pairs and
+        constraint addresses and of ``efc_force`` into ``con`` (valid until the next step; the env turns
+        them into forces for the whole batch at once), or, without ``stash_contacts``, the per-node forces
+        into the force row. Runs in a worker thread right after stepping, so it overlaps the other
+        thread's physics; the env picks the bodies and joints it needs for the batch, vectorized."""
+        d = self.data
+        for dst, src in self._copies:
+            dst[...] = src
+        if not self.stash_contacts:
+            self.contacts(self._force)
+            return
+        ncon = d.ncon
+        if ncon:
+            c = d.contact
+            self.con = (c.geom[:ncon], c.efc_address[:ncon], d.efc_force)
+        else:
+            self.con = None
 
     def contacts(self, force: np.ndarray) -> None:
-        """Add the normal force (N) of each hand–object contact to its node's entry of ``force``."""
+        """Set ``force`` (n_nodes,) to the summed normal force (N) of the hand–object contacts of each node."""
         d = self.data
         ncon = d.ncon
         if ncon == 0:
+            force[:] = 0.0
             return
-        g1, g2 = d.contact.geom1[:ncon], d.contact.geom2[:ncon]
-        node = np.where(self.obj_geom[g1], self.idx.geom_node[g2], np.where(self.obj_geom[g2], self.idx.geom_node[g1], -1))
-        sel = np.nonzero((node >= 0) & (d.contact.efc_address[:ncon] >= 0))[0]
-        elliptic = self.model.opt.cone == self.mj.mjtCone.mjCONE_ELLIPTIC
-        for k in sel:  # normal force: first row of an elliptic cone, sum of a pyramid's facets
-            adr, dim = d.contact.efc_address[k], d.contact.dim[k]
-            force[node[k]] += d.efc_force[adr] if elliptic or dim == 1 else d.efc_force[adr:adr + 2 * (dim - 1)].sum()
+        c = d.contact
+        adr = c.efc_address[:ncon]
+        node = self.pair_node[c.geom1[:ncon], c.geom2[:ncon]]
+        sel = (node >= 0) & (adr >= 0)
+        if self._elliptic:  # normal force: the first row of each contact's cone
+            # bincount adds in contact order from 0.0, exactly like a loop of ``force[node] += f``
+            force[:] = np.bincount(node[sel], weights=d.efc_force[adr[sel]], minlength=len(force))
+            return
+        force[:] = 0.0
+        for k in np.nonzero(sel)[0]:  # pyramidal cones: the sum of the facets (a frictionless contact has one row)
+            a, dim = adr[k], c.dim[k]
+            force[node[k]] += d.efc_force[a] if dim == 1 else d.efc_force[a:a + 2 * (dim - 1)].sum()
+
+
+def contact_table(model, index: SceneIndex) -> np.ndarray:
+    """(ngeom, ngeom) int: for a contact between geoms (g1, g2), the node of the hand geom when the
+    other one belongs to the object, else -1."""
+    obj = model.geom_bodyid == index.object_body
+    node = np.asarray(index.geom_node)
+    return np.where(obj[:, None], node[None, :], np.where(obj[None, :], node[:, None], -1)).astype(np.int64)
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
