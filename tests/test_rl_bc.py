@@ -47,6 +47,34 @@ def test_collect_shapes_and_whole_episodes(demos):
     assert (demos.actions[-1, :, 6:] > 0).any()
 
 
+class _Frozen(torch.nn.Module):
+    """A student that never moves: (B, A) zero means."""
+
+    cfg = get_preset("compact")
+
+    def forward(self, obs):
+        b, n = obs["node_valid"].shape
+        return torch.zeros(b, 6 + 3 * n), torch.zeros(b, 6 + 3 * n), torch.zeros(b)
+
+
+def _first_closing_step(d: bc.Demonstrations) -> int:
+    return int(torch.nonzero((d.actions[:, 0, 6:] > 0).any(-1))[0])
+
+
+def test_dagger_executes_the_student_and_labels_with_the_teacher(demos):
+    spec = load_spec(resolve_spec("dgz_tri"))
+    env = GraspEnv([(spec, o) for o in resolve_objects("sphere,box")], threads=1)
+    d = bc.collect(env, 1, ReturnNormalizer(env.B, 0.996), 0.996, seed=3, student=_Frozen())
+    env.close()
+    # the teacher labels "approach" first in both; a hand that does not move stalls at once and the
+    # teacher switches to closing after 3 steps, while when it acts itself it approaches for longer
+    assert (d.actions[0, :, 2] == 1).all()
+    assert _first_closing_step(d) <= 5 < 10 < _first_closing_step(demos)
+    assert d.success_rate == 0.0
+    both = bc.Demonstrations.concat([demos, d])
+    assert both.actions.shape[0] == 2 * demos.actions.shape[0] and both.episodes == 4
+
+
 def test_pretrain_makes_the_policy_imitate_the_teacher(demos):
     torch.manual_seed(0)
     model = MAGCN(get_preset("compact"))
@@ -70,10 +98,11 @@ def test_pretrain_makes_the_policy_imitate_the_teacher(demos):
 
 def test_training_with_warm_start_records_it(tmp_path):
     cfg = TrainConfig(hands=("dgz_tri",), objects="sphere", repeat=1, steps_per_env=20, iterations=1, seed=0,
-                      bc_episodes=1, bc_epochs=2)
+                      bc_episodes=1, bc_epochs=2, bc_dagger_rounds=1)
     seen = []
     Trainer(cfg, tmp_path, None, on_warm_start=seen.append).train()
     _, meta = load_policy(tmp_path)
     assert meta["train"]["bc_episodes"] == 1 and meta["warm_start"]["teacher"] == "scripted"
-    assert meta["warm_start"]["episodes"] == 1 and seen == [meta["warm_start"]]
+    assert meta["warm_start"]["episodes"] == 2 and seen == [meta["warm_start"]]
+    assert len(meta["warm_start"]["clone_success_rates"]) == 1
     assert meta["privileged_inputs"] == ["contact", "force"]

@@ -120,6 +120,8 @@ def train(
                                     help="warm start: clone the scripted grasp over this many episodes per env "
                                          "before PPO (0 = from scratch, as in the paper)"),
     bc_epochs: int = typer.Option(10, "--bc-epochs", min=1, help="epochs of the behaviour-cloning fit"),
+    bc_dagger: int = typer.Option(0, "--bc-dagger", min=0,
+                                  help="DAgger rounds after the clone: it acts, the scripted grasp labels, refit"),
     lift_weight: float = typer.Option(0.0, "--lift-weight", min=0.0,
                                       help="weight of r_lift, the object's rise after the grasp phase "
                                            "(not in the paper; 0 = the paper's reward)"),
@@ -131,7 +133,8 @@ def train(
 
     cfg = dict(hands=tuple(h for h in hands.split(",") if h), objects=objects, preset=preset, ablation=ablation,
                iterations=iterations, repeat=repeat, steps_per_env=steps, checkpoint_every=checkpoint_every, seed=seed,
-               bc_episodes=bc_episodes, bc_epochs=bc_epochs, lift_weight=lift_weight)
+               bc_episodes=bc_episodes, bc_epochs=bc_epochs, bc_dagger_rounds=bc_dagger,
+               lift_weight=lift_weight)
     raise typer.Exit(train_cmd.run(cfg, out_dir, resume, asset_root, out))
 
 

@@ -54,7 +54,8 @@ def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, conso
 
     def warm(stats: dict) -> None:
         console.print(f"behaviour cloning from the scripted grasp: {stats['episodes']} episodes "
-                      f"(teacher success {stats['teacher_success_rate']:.3f}), action MSE {stats['bc_action_loss']:.4f}, "
+                      f"(teacher success {stats['teacher_success_rate']:.3f}, clone success per DAgger round "
+                      f"{stats['clone_success_rates']}), action MSE {stats['bc_action_loss']:.4f}, "
                       f"value MSE {stats['bc_value_loss']:.3f} [dim]collect {stats['collect_s']}s fit {stats['fit_s']}s[/]",
                       highlight=False)
 

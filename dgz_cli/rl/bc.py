@@ -36,8 +36,17 @@ class Demonstrations:
     global_: torch.Tensor               # (T, B, 16)
     actions: torch.Tensor               # (T, B, A) scripted actions in [-1, 1]
     returns: torch.Tensor               # (T, B) discounted returns of the scaled rewards
-    success_rate: float                 # of the scripted episodes collected
+    success_rate: float                 # of the episodes collected (by whoever acted)
     episodes: int
+
+    @staticmethod
+    def concat(parts: list["Demonstrations"]) -> "Demonstrations":
+        """Aggregate collections from the same env along time (DAgger's growing dataset)."""
+        return Demonstrations(static=parts[0].static, nodes=torch.cat([p.nodes for p in parts]),
+                              global_=torch.cat([p.global_ for p in parts]),
+                              actions=torch.cat([p.actions for p in parts]),
+                              returns=torch.cat([p.returns for p in parts]),
+                              success_rate=parts[-1].success_rate, episodes=sum(p.episodes for p in parts))
 
     def obs(self, t: torch.Tensor, b: torch.Tensor) -> dict[str, torch.Tensor]:
         """Observation batch of the (t, b) index pairs (M,) each."""
@@ -46,10 +55,14 @@ class Demonstrations:
         return out
 
 
-def collect(env: GraspEnv, episodes: int, normalizer: ReturnNormalizer, gamma: float, seed: int) -> Demonstrations:
-    """Roll the scripted grasp for ``episodes`` whole episodes in every slot of ``env``.
+def collect(env: GraspEnv, episodes: int, normalizer: ReturnNormalizer, gamma: float, seed: int,
+            student: nn.Module | None = None) -> Demonstrations:
+    """Roll ``episodes`` whole episodes in every slot of ``env``, labelled with the scripted grasp's actions.
 
-    ``normalizer`` is updated with the rewards (so PPO starts from the same scale) and scales them.
+    Without ``student`` the scripted grasp acts (plain behaviour cloning); with it the student's mean
+    action is executed while the teacher still labels every visited state (DAgger: the clone then learns
+    what to do in the states its own mistakes lead to). ``normalizer`` is updated with the rewards (so
+    PPO starts from the same scale) and scales them.
     """
     obs = env.reset(seed)
     teacher = ScriptedGrasp(env.N, env.grasp_offset, distance_clip=env.cfg.distance_clip)
@@ -60,11 +73,15 @@ def collect(env: GraspEnv, episodes: int, normalizer: ReturnNormalizer, gamma: f
     successes: list[bool] = []
     steps = episodes * env.cfg.episode_steps
     for _ in range(steps):
-        a = teacher.act(obs)
+        a = teacher.act(obs)  # the teacher follows the visited states, whoever acts
+        executed = a
+        if student is not None:
+            with torch.no_grad():
+                executed = student(to_tensors(obs))[0].numpy()
         nodes.append(torch.as_tensor(obs["nodes"], dtype=torch.float32).clone())
         glob.append(torch.as_tensor(obs["global"], dtype=torch.float32).clone())
         actions.append(torch.as_tensor(a, dtype=torch.float32))
-        obs, reward, terminated, truncated, info = env.step(a)
+        obs, reward, terminated, truncated, info = env.step(executed)
         done = terminated | truncated
         rewards.append(normalizer(reward.astype(np.float64), done))
         dones.append(done)

@@ -24,6 +24,8 @@ class TrainConfig(BaseModel):
     bc_episodes: int = Field(0, ge=0, description="behaviour-cloning warm start: scripted episodes per env before "
                                                   "PPO (0 = from scratch, as in the paper)")
     bc_epochs: int = Field(10, ge=1, description="epochs of the behaviour-cloning regression")
+    bc_dagger_rounds: int = Field(0, ge=0, description="DAgger rounds after the first fit: the clone acts, the "
+                                                       "scripted grasp labels, the data are aggregated and refit")
     bc_log_std: float = Field(-1.5, description="exploration log-std set after behaviour cloning")
     bc_learning_rate: float = Field(2e-5, gt=0, description="PPO's starting learning rate after behaviour cloning "
                                     "(the adaptive-KL schedule adapts it; 5e-4 undoes the clone in a few steps)")

@@ -155,18 +155,33 @@ class Trainer:
             env.close()
 
     def behaviour_clone(self) -> None:
-        """Warm start from the scripted grasp (see :mod:`dgz_cli.rl.bc`); logged as iteration 0."""
+        """Warm start from the scripted grasp, then ``bc_dagger_rounds`` DAgger rounds (see
+        :mod:`dgz_cli.rl.bc`); saved as iteration 0."""
         from dgz_cli.rl import bc
 
         cfg, t0 = self.cfg, time.perf_counter()
-        torch.set_num_threads(1)
-        demos = bc.collect(self.env, cfg.bc_episodes, self.reward_norm, self.ppo.cfg.gamma, cfg.seed)
-        collect_s = time.perf_counter() - t0
-        torch.set_num_threads(cfg.torch_threads)
-        stats = bc.pretrain(self.model, demos, epochs=cfg.bc_epochs, log_std=cfg.bc_log_std, seed=cfg.seed)
-        self.warm_start = dict(teacher="scripted", episodes=demos.episodes, teacher_success_rate=demos.success_rate,
-                               collect_s=round(collect_s, 1), fit_s=round(time.perf_counter() - t0 - collect_s, 1),
-                               **stats)
+        collect_s = 0.0
+        parts: list = []
+        clone_success: list[float] = []
+        for round_ in range(cfg.bc_dagger_rounds + 1):
+            tc = time.perf_counter()
+            torch.set_num_threads(1)
+            self.model.eval()
+            student = self.model if round_ > 0 else None
+            parts.append(bc.collect(self.env, cfg.bc_episodes, self.reward_norm, self.ppo.cfg.gamma,
+                                    cfg.seed + round_, student=student))
+            if student is not None:
+                clone_success.append(round(parts[-1].success_rate, 4))
+            collect_s += time.perf_counter() - tc
+            torch.set_num_threads(cfg.torch_threads)
+            stats = bc.pretrain(self.model, bc.Demonstrations.concat(parts), epochs=cfg.bc_epochs, seed=cfg.seed + round_)
+        with torch.no_grad():
+            self.model.log_std_wrist.fill_(cfg.bc_log_std)
+            self.model.log_std_prim.fill_(cfg.bc_log_std)
+        self.warm_start = dict(teacher="scripted", episodes=sum(p.episodes for p in parts),
+                               teacher_success_rate=parts[0].success_rate, dagger_rounds=cfg.bc_dagger_rounds,
+                               clone_success_rates=clone_success, collect_s=round(collect_s, 1),
+                               fit_s=round(time.perf_counter() - t0 - collect_s, 1), **stats)
         self.ppo.set_learning_rate(cfg.bc_learning_rate)
         self.save()  # iteration 0: the clone alone, before any PPO update
         self.on_warm_start(self.warm_start)
