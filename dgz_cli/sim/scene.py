@@ -8,6 +8,7 @@ as equality constraints, the object as a free body and a table plane at z = 0.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -99,13 +100,31 @@ def palm_in_root(spec: HandSpec, hand) -> tuple[np.ndarray, np.ndarray]:
     return rot @ axes, rot @ np.array(spec.palm.center) + pos
 
 
+@functools.lru_cache(maxsize=16)
+def _hand_xml_and_palm(spec_json: str, urdf: str, mtime_ns: int) -> tuple[str, np.ndarray, np.ndarray]:
+    """The hand's MuJoCo XML and its palm frame in the root frame, once per (spec, URDF): an env with
+    many objects builds one scene per (hand, object) and would otherwise parse the URDF and compile
+    the hand alone for each. ``mtime_ns`` keys an edited URDF apart. The arrays are read-only (shared
+    by the cache)."""
+    import mujoco
+
+    spec = HandSpec.model_validate_json(spec_json)
+    robot = read_robot_xml(Path(urdf), spec.provenance.xacro_args)
+    xml = mujoco_xml(robot)
+    axes, center = palm_in_root(spec, mujoco.MjSpec.from_string(xml))
+    axes.setflags(write=False)
+    center.setflags(write=False)
+    return xml, axes, center
+
+
 def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str | None, visual: bool = False):
     """The scene as an ``MjSpec`` (call ``.compile()``; ``.to_xml()`` for a standalone file)."""
     import mujoco
 
-    robot = read_robot_xml(resolve_urdf(spec.provenance.urdf, asset_root), spec.provenance.xacro_args)
-    hand = mujoco.MjSpec.from_string(mujoco_xml(robot))
-    palm_axes_w, palm_center_w = palm_in_root(spec, mujoco.MjSpec.from_string(mujoco_xml(robot)))
+    urdf = resolve_urdf(spec.provenance.urdf, asset_root)
+    hand_xml, palm_axes_w, palm_center_w = _hand_xml_and_palm(spec.model_dump_json(), str(urdf),
+                                                                   urdf.stat().st_mtime_ns)
+    hand = mujoco.MjSpec.from_string(hand_xml)
     mount = NOMINAL_PALM @ palm_axes_w.T  # palm down, finger axis along world +x
     world = mujoco.MjSpec()
     world.modelname = f"dgz_{spec.name}_{obj.name}"
