@@ -21,6 +21,7 @@ import numpy as np
 
 from dgz_cli.sim import observe
 from dgz_cli.sim.config import EnvConfig
+from dgz_cli.sim.gather import BatchGather
 from dgz_cli.sim.objects import ObjectModel
 from dgz_cli.sim.reward import TERMS, reward_terms, total
 from dgz_cli.sim.scene import build_scene, static_graph
@@ -43,13 +44,6 @@ class GraspEnv:
             model, index, pair_node, m = cache[key]
             self.slots.append(Slot(spec, obj, model, index, cfg, pair_node))  # slots share the (hand, object) model
             model_of.append(m)
-        # contact (geom1, geom2) → node tables of all models, padded, for the batched contact forces
-        tables = [v[2] for v in cache.values()]
-        g = max(len(t) for t in tables)
-        self._pair_node = np.full((len(tables), g, g), -1, np.int16)
-        for m, t in enumerate(tables):
-            self._pair_node[m, :len(t), :len(t)] = t
-        self._model_of = np.array(model_of)
         self.B = len(self.slots)
         self.N = max(len(s.spec.nodes) for s in self.slots)
         self.L = max(s.n_joints for s in self.slots)
@@ -71,7 +65,7 @@ class GraspEnv:
         B, N, L = self.B, self.N, self.L
         self.buf = dict(xpos=np.zeros((B, N + 2, 3)), xmat=np.tile(np.eye(3).reshape(9), (B, N + 2, 1)),
                         q=np.zeros((B, L)), qd=np.zeros((B, L + 6)), force=np.zeros((B, N)), wq=np.zeros((B, 6)))
-        self._raw_buffers()
+        self.gather = BatchGather(self.slots, self.buf, [v[2] for v in cache.values()], model_of)
         self.palm_axes = np.stack([s.idx.palm_axes for s in self.slots])
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
         self.grasp_offset = np.stack([s.idx.grasp_offset for s in self.slots])  # (B, 3) palm frame
@@ -119,79 +113,6 @@ class GraspEnv:
         self.cloud_sum = self.cloud.sum(axis=1)  # (B, 3): the object centre is obj_pos + R · cloud_sum / P
         self.static_nodes = observe.static_features(self.finger, self.node_type, self.node_valid)
 
-    def _raw_buffers(self) -> None:
-        """Per-slot copies of whole MjData arrays (written by the worker threads, one contiguous copy each)
-        and flat index arrays that pick what the observation needs for the whole batch in one ``np.take``.
-        ``buf`` rows of ``xpos`` / ``xmat``: the N node bodies (padded), then the object body, then the palm
-        body; ``q`` (B, L) hand joints, ``wq`` (B, 6) wrist joints, ``qd`` (B, L + 6) hand joint then
-        object velocities; padding points at an extra all-zero (``xmat``: identity) row / column."""
-        B, N, L = self.B, self.N, self.L
-        nb = max(s.model.nbody for s in self.slots) + 1  # + a padding body
-        nq = max(s.model.nq for s in self.slots) + 1
-        nv = max(s.model.nv for s in self.slots) + 1
-        self.raw = dict(xpos=np.zeros((B, nb, 3)), xmat=np.zeros((B, nb, 9)), qpos=np.zeros((B, nq)),
-                        qvel=np.zeros((B, nv)))
-        self.raw["xmat"][:, nb - 1] = np.eye(3).reshape(9)
-        self._take_body = np.full((B, N + 2), nb - 1)
-        self._take_q = np.full((B, L), nq - 1)
-        self._take_wq = np.zeros((B, 6), np.int64)
-        self._take_qd = np.full((B, L + 6), nv - 1)
-        for b, s in enumerate(self.slots):
-            idx, n, l = s.idx, len(s.spec.nodes), s.n_joints
-            self._take_body[b, :n] = idx.node_body
-            self._take_body[b, N:] = idx.object_body, idx.palm_body
-            self._take_q[b, :l] = idx.hand_qadr
-            self._take_wq[b] = idx.wrist_qadr
-            self._take_qd[b, :l] = idx.hand_dadr
-            self._take_qd[b, L:] = np.arange(idx.object_dadr, idx.object_dadr + 6)
-            s.bind(self.raw["xpos"][b], self.raw["xmat"][b], self.raw["qpos"][b], self.raw["qvel"][b],
-                   self.buf["force"][b, :n], stash_contacts=True)
-        self._take_body += np.arange(B)[:, None] * nb  # flat indices into the (B * rows, ...) raw arrays
-        self._take_q += np.arange(B)[:, None] * nq
-        self._take_wq += np.arange(B)[:, None] * nq
-        self._take_qd += np.arange(B)[:, None] * nv
-
-    def _assemble(self, rows: slice) -> None:
-        """Fill ``buf`` rows (a slice with start and stop) from what the slots' ``gather`` left: poses and
-        joints with five ``np.take`` over the rows, contact forces with one lookup and one ``bincount``
-        over all their contacts."""
-        self._contact_forces(rows)
-        raw, buf = self.raw, self.buf
-        np.take(raw["xpos"].reshape(-1, 3), self._take_body[rows], axis=0, out=buf["xpos"][rows])
-        np.take(raw["xmat"].reshape(-1, 9), self._take_body[rows], axis=0, out=buf["xmat"][rows])
-        qpos = raw["qpos"].reshape(-1)
-        np.take(qpos, self._take_q[rows], out=buf["q"][rows])
-        np.take(qpos, self._take_wq[rows], out=buf["wq"][rows])
-        np.take(raw["qvel"].reshape(-1), self._take_qd[rows], out=buf["qd"][rows])
-
-    def _contact_forces(self, rows: slice) -> None:
-        """``buf["force"]`` rows: per node, the summed normal force (the first row of an elliptic cone, N) of
-        its hand–object contacts, from the contacts the slots stashed, for all of them at once: one table
-        lookup and one ``bincount``, which adds in contact order from 0 like a per-contact loop. Slots that
-        do not stash (pyramidal cones) wrote their own rows in ``gather``."""
-        lo, hi, N = rows.start, rows.stop, self.N
-        slots = self.slots[lo:hi]
-        stash = [(b, s.con) for b, s in zip(range(lo, hi), slots) if s.stash_contacts and s.con is not None]
-        out = np.zeros((hi - lo) * N)
-        if stash:
-            count = [len(c[1]) for _, c in stash]
-            slot = np.repeat([b for b, _ in stash], count)
-            geom = np.concatenate([c[0] for _, c in stash])
-            adr = np.concatenate([c[1] for _, c in stash])
-            efc = [c[2] for _, c in stash]
-            base = np.repeat(np.cumsum([0] + [len(e) for e in efc[:-1]]), count)  # each slot's offset in efc
-            node = self._pair_node[self._model_of[slot], geom[:, 0], geom[:, 1]]
-            sel = (node >= 0) & (adr >= 0)
-            if sel.any():
-                out = np.bincount((slot[sel] - lo) * N + node[sel], weights=np.concatenate(efc)[adr[sel] + base[sel]],
-                                  minlength=(hi - lo) * N)
-        out = out.reshape(hi - lo, N)
-        if all(s.stash_contacts for s in slots):
-            self.buf["force"][rows] = out
-        else:
-            mine = np.array([s.stash_contacts for s in slots])
-            self.buf["force"][lo:hi][mine] = out[mine]
-
     def state(self) -> dict[str, np.ndarray]:
         """The raw quantities the observation is built from, batched (copies; for tests and debugging):
         ``nodes`` (B, N, 3) node anchors, ``palm_pos`` (B, 3) / ``palm_rot`` (B, 3, 3) palm centre and
@@ -235,7 +156,7 @@ class GraspEnv:
         for v in self.term_sums.values():
             v[b] = 0.0
         s.gather()
-        self._assemble(slice(b, b + 1))
+        self.gather.assemble(slice(b, b + 1))
         self.z0[b] = s.z0
         rot = self.buf["xmat"][b, self.N + 1].reshape(3, 3)
         self.prev_rot[b] = rot @ self.palm_axes[b]
@@ -329,8 +250,8 @@ class GraspEnv:
             run(list(range(self.B)))
         else:
             list(self.pool.map(run, self.chunks))
-        self._assemble(slice(0, self.B))
-        return ok & np.isfinite(self.raw["qpos"]).all(axis=1)  # NaN anywhere in the slot's qpos
+        self.gather.assemble(slice(0, self.B))
+        return ok & np.isfinite(self.gather.raw["qpos"]).all(axis=1)  # NaN anywhere in the slot's qpos
 
     # ---------------------------------------------------------------- observation
     def _observe(self):
