@@ -10,9 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from dgz_cli.hw.config import load_yaml_model
 from dgz_cli.hw.errors import ConfigError
 
 ARMS_DIR = Path(__file__).resolve().parent / "arms"
@@ -73,14 +73,4 @@ def load_arm_config(name_or_path: str) -> ArmConfig:
         p = ARMS_DIR / f"{name_or_path}.yaml"
     if not p.is_file():
         raise ConfigError(f"{p}: no such arm file", f"use one of: {', '.join(shipped_arm_configs())}, or a path")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: malformed YAML: {' '.join(str(exc).split())}", "fix the YAML syntax") from None
-    try:
-        return ArmConfig.model_validate(data)
-    except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = ".".join(str(x) for x in err["loc"]) or "(top level)"
-        msg = f"unknown key '{loc}'" if err["type"] == "extra_forbidden" else err["msg"]
-        raise ConfigError(f"{p}: field '{loc}': {msg}", "see docs/deploy.md (arm interface)") from None
+    return load_yaml_model(p, ArmConfig, "docs/deploy.md (arm interface)")

@@ -14,12 +14,14 @@ Native units ↔ radians (``conversion``):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Literal, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dgz_cli.hw.errors import ConfigError
+
+M = TypeVar("M", bound=BaseModel)
 
 HANDS_DIR = Path(__file__).resolve().parent / "hands"
 
@@ -132,16 +134,20 @@ def hand_config_path(name_or_path: str) -> Path:
     return candidate
 
 
-def load_hand_config(name_or_path: str) -> HandConfig:
-    path = hand_config_path(name_or_path)
+def load_yaml_model(path: Path, model: type[M], doc_hint: str) -> M:
+    """A YAML file (safe_load) validated as ``model``; one-line errors naming the file and field."""
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: malformed YAML: {exc}", "fix the YAML syntax") from None
+        raise ConfigError(f"{path}: malformed YAML: {' '.join(str(exc).split())}", "fix the YAML syntax") from None
     try:
-        return HandConfig.model_validate(data)
+        return model.model_validate(data)
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
         msg = f"unknown key '{loc}'" if err["type"] == "extra_forbidden" else err["msg"]
-        raise ConfigError(f"{path}: field '{loc}': {msg}", "see docs/deploy.md (hand files)") from None
+        raise ConfigError(f"{path}: field '{loc}': {msg}", f"see {doc_hint}") from None
+
+
+def load_hand_config(name_or_path: str) -> HandConfig:
+    return load_yaml_model(hand_config_path(name_or_path), HandConfig, "docs/deploy.md (hand files)")
