@@ -40,7 +40,7 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
             overrides = None
     result = onboard(urdf, name, root, palm_link, xacro_args, overrides)
     spec = result.spec
-    findings = lint_file(spec, out_path, str(root) if root else None)
+    findings = lint_file(spec, out_path, str(root) if root else None, result.poser)
     errors = [f for f in findings if f.level == "error"]
     if not errors:
         write_spec(spec, out_path)

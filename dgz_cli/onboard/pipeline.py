@@ -24,6 +24,7 @@ class OnboardResult:
     spec: HandSpec
     responses: dict[str, excite.Response]
     notes: tuple[str, ...] = ()  # MuJoCo compiler warnings and similar, for the user to read
+    poser: Poser | None = None  # the compiled hand, so the lint that follows need not compile it again
 
 
 def _r(v, nd: int = 6) -> list[float]:
@@ -140,4 +141,4 @@ def onboard(urdf: Path, name: str, asset_root: Path | None = None, palm_link: st
     notes = tuple(f"MuJoCo: {w}" for w in mj_warnings)
     notes += tuple(f"joint '{r.joint}' → {r.primitive} ({r.note}; margin {r.margin:.2f}): check it with `dgz show`"
                    for r in responses.values() if r.flagged and r.joint in command)
-    return OnboardResult(spec, responses, notes)
+    return OnboardResult(spec, responses, notes, poser)

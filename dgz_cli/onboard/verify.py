@@ -11,7 +11,8 @@ from dgz_cli.spec.lint import Finding, lint_spec
 from dgz_cli.spec.models import HandSpec
 
 
-def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None) -> list[Finding]:
+def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None, poser=None) -> list[Finding]:
+    """``poser``: the hand already compiled from this URDF (by ``dgz onboard``), reused if it is the same file."""
     from dgz_cli.onboard.urdf import load_kinematics
 
     out: list[Finding] = []
@@ -24,7 +25,8 @@ def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None)
     if sha != spec.provenance.urdf_sha256:
         out.append(Finding("warning", "provenance.urdf_sha256", f"{urdf} changed since this spec was written",
                            f"re-onboard: {reonboard}"))
-    kin = load_kinematics(urdf, spec.provenance.xacro_args)
+    same = poser is not None and Path(poser.kin.source).resolve() == urdf.resolve()
+    kin = poser.kin if same else load_kinematics(urdf, spec.provenance.xacro_args)
     actuated = {j.name for j in kin.actuated} - set(spec.excluded_joints)
     rows = {r.joint: (k, r) for k, r in enumerate(spec.joints)}
     for name in sorted(actuated - set(rows)):
@@ -59,11 +61,11 @@ def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None)
         from dgz_cli.onboard.compile import Poser, compile_model
         from dgz_cli.onboard.functional import functional_check
 
-        for problem in functional_check(spec, Poser(kin, compile_model(kin))):
+        for problem in functional_check(spec, poser if same else Poser(kin, compile_model(kin))):
             out.append(Finding("error", "joints", f"functional check: {problem}",
                                "correct that finger's primitive/sign in an --overrides file, then re-onboard"))
     return out
 
 
-def lint_file(spec: HandSpec, spec_path: Path, asset_root: str | None) -> list[Finding]:
-    return lint_spec(spec) + verify_against_urdf(spec, spec_path, asset_root)
+def lint_file(spec: HandSpec, spec_path: Path, asset_root: str | None, poser=None) -> list[Finding]:
+    return lint_spec(spec) + verify_against_urdf(spec, spec_path, asset_root, poser)
