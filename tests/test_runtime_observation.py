@@ -145,3 +145,18 @@ def test_object_points_file_format(tmp_path):
         with pytest.raises(DgzError, match=message) as info:
             load_object_points(path)
         assert name in info.value.message and "\n" not in info.value.message and info.value.hint
+
+
+def test_builtin_object_points_sit_in_front_of_the_palm(tmp_path, monkeypatch):
+    pts = load_object_points("sphere")
+    centre = pts.mean(0)
+    assert pts.shape == (256, 3) and np.allclose(centre, [0, 0, 0.25], atol=0.01)
+    r = np.linalg.norm(pts - [0, 0, 0.25], axis=1)  # on the sim's (triangulated) 35 mm sphere
+    assert r.max() <= 0.035 + 1e-9 and r.min() > 0.033
+    box = load_object_points("box")
+    assert np.abs(box - [0, 0, 0.25]).max(0) == pytest.approx([0.03, 0.045, 0.05], abs=1e-9)
+    monkeypatch.chdir(tmp_path)
+    np.save(tmp_path / "sphere", np.array([[0.0, 0.0, 0.1]]))  # a file of that name wins over the built-in
+    assert load_object_points("sphere.npy").shape == (1, 3)
+    with pytest.raises(DgzError, match="nor a built-in object"):
+        load_object_points("cube")

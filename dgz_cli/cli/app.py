@@ -207,7 +207,9 @@ def deploy(
                                     "(e.g. dgz-cpu-first), or package.module:factory (called with the HandSpec)"),
     object_points: Optional[Path] = typer.Option(None, "--object-points",
                                                  help="object point cloud: .npy (P, 3) or 'x y z' lines, metres, "
-                                                      "palm frame (f, l, n) at the start pose"),
+                                                      "palm frame (f, l, n) at the start pose; or sphere, box, "
+                                                      "cylinder, capsule: that built-in object 0.25 m in front of "
+                                                      "the palm"),
     allow_privileged: bool = typer.Option(False, "--allow-privileged",
                                           help="run a policy that observes contact flags/forces (a teacher) with "
                                                "those inputs fed as zeros; for tests, not for grasping"),

@@ -32,12 +32,33 @@ FORMAT_HINT = ("give a .npy array of shape (P, 3) or a text file with one 'x y z
                "in the palm frame (origin palm centre, axes f, l, n) of the hand at its start pose")
 
 
+BUILTIN_DISTANCE = 0.25  # m from the palm centre along its normal: the paper's deployment start (Supp. S2)
+
+
+def builtin_object_points(name: str, n: int = 256, distance: float = BUILTIN_DISTANCE) -> np.ndarray:
+    """(n, 3) surface points of a built-in primitive object (sphere, box, cylinder, capsule; the sim's
+    sizes) centred ``distance`` in front of the palm (palm frame f, l, n), for dry runs without a camera."""
+    import mujoco
+
+    from dgz_cli.sim.objects import ObjectModel, object_spec, surface_points
+
+    model = object_spec(ObjectModel(name, "primitive", None), visual=False).compile()
+    pts = surface_points(model, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "object"), n)
+    return pts + np.array([0.0, 0.0, distance])
+
+
 def load_object_points(path: Path) -> np.ndarray:
-    """(P, 3) object surface points (m, palm frame at the start pose) from .npy or text; at most
-    ``MAX_POINTS`` are kept (every k-th). One-line errors name the file and what is wrong."""
+    """(P, 3) object surface points (m, palm frame at the start pose) from .npy or text, or a built-in
+    object's name (see :func:`builtin_object_points`); at most ``MAX_POINTS`` are kept (every k-th).
+    One-line errors name the file and what is wrong."""
+    from dgz_cli.sim.objects import PRIMITIVES
+
+    if str(path) in PRIMITIVES and not Path(path).exists():
+        return builtin_object_points(str(path))
     path = Path(path)
     if not path.is_file():
-        raise DgzError(f"{path}: no such point-cloud file", FORMAT_HINT)
+        raise DgzError(f"{path}: no such point-cloud file (nor a built-in object: {', '.join(PRIMITIVES)})",
+                       FORMAT_HINT)
     try:
         if path.suffix == ".npy":
             pts = np.load(path, allow_pickle=False)
