@@ -43,3 +43,11 @@ def test_env_rewards_a_carried_object_only_with_a_lift_weight():
     assert lifts[cfg.grasp_steps - 1] == 0.0  # nothing during the grasp phase
     assert lifts[-1] == pytest.approx(1.0)  # carried the full lift height
     assert info["episode"][0]["success"] and info["episode"][0]["r_lift"] == pytest.approx(np.mean(lifts))
+
+
+def test_training_config_carries_the_lift_weight_into_the_env():
+    from dgz_cli.rl.config import TrainConfig
+    from dgz_cli.rl.runner import env_config
+
+    assert env_config(TrainConfig()).reward == RewardWeights()  # the paper's reward by default
+    assert env_config(TrainConfig(lift_weight=50.0)).reward.lift == 50.0
