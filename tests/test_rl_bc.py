@@ -106,3 +106,20 @@ def test_training_with_warm_start_records_it(tmp_path):
     assert meta["warm_start"]["episodes"] == 2 and seen == [meta["warm_start"]]
     assert len(meta["warm_start"]["clone_success_rates"]) == 1
     assert meta["privileged_inputs"] == ["contact", "force"]
+
+
+def test_git_revision_marks_a_dirty_tree(tmp_path):
+    import subprocess
+
+    from dgz_cli.rl.checkpoint import git_revision
+
+    assert git_revision(tmp_path) is None  # not a git checkout
+    run = lambda *a: subprocess.run(["git", *a], cwd=tmp_path, check=True, capture_output=True)  # noqa: E731
+    run("init", "-q")
+    (tmp_path / "f.txt").write_text("a")
+    run("add", "f.txt")
+    run("-c", "user.email=t@t", "-c", "user.name=t", "commit", "-qm", "x")
+    clean = git_revision(tmp_path)
+    assert len(clean) == 40
+    (tmp_path / "f.txt").write_text("b")
+    assert git_revision(tmp_path) == clean + "-dirty"

@@ -87,6 +87,7 @@ class Trainer:
         self.iteration = 0
         self.history: list[dict] = []
         self.warm_start: dict | None = None  # behaviour-cloning statistics, once done
+        self.git_revision = checkpoint.git_revision()
         if resume:
             self._resume()
         elif (self.out / "checkpoint.yaml").exists():
@@ -103,7 +104,7 @@ class Trainer:
             ppo=json.loads(self.ppo.cfg.model_dump_json()),
             env=json.loads(self.env.cfg.model_dump_json()),
             training_hands={p.stem: checkpoint.spec_hash(p) for p in self.spec_paths},
-            git_revision=checkpoint.git_revision(),
+            git_revision=self.git_revision,  # of the code this process started with
             learning_rate=float(self.ppo.learning_rate),
             reward_normalizer=self.reward_norm.state(),
             last=self.history[-1] if self.history else None,
