@@ -109,7 +109,8 @@ def test_train_bad_options(tmp_path, args, message):
     assert not (tmp_path / "run").exists()
 
 
-def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path):
+@pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart"])
+def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     from conftest import REPO
     from dgz_cli.policy.graph import to_tensors
     from dgz_cli.sim.env import GraspEnv
@@ -117,7 +118,7 @@ def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path):
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.io import load_spec
 
-    path = REPO / "policies" / "dgz-cpu-first"
+    path = REPO / "policies" / name
     model, meta = load_policy(path)
     assert set(meta["training_hands"]) == {"allegro", "shadow", "schunk_svh", "ability"}
     env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("box")[0])], threads=1)
@@ -125,5 +126,6 @@ def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path):
         mean = model(to_tensors(env.reset(0)))[0]
     env.close()
     assert mean.shape == (1, env.action_dim) and torch.isfinite(mean).all()
-    res = _dgz("eval", "--policy", "dgz-cpu-first", "--hand", "allegro", "--zero-shot", cwd=tmp_path)
+    assert (path / "MODEL_CARD.md").is_file()
+    res = _dgz("eval", "--policy", name, "--hand", "allegro", "--zero-shot", cwd=tmp_path)
     assert res.returncode == 1 and "allegro was a training hand" in res.stderr
