@@ -9,16 +9,15 @@ code versions.
   ``mujoco.mj_contactForce``; so does the per-slot fallback ``Slot.contacts``.
 * ``test_pyramidal_cone_slots_mixed_into_a_batch``: the same with some slots on pyramidal cones (they
   compute their own forces) mixed with batched elliptic ones.
-* ``test_rollout_matches_recorded_reference``: only when ``DGZ_SIM_REFERENCE`` names an ``.npz`` recorded
-  by ``python tests/test_sim_perf_equivalence.py --record FILE`` (with an older version of the code):
-  observations, rewards, reward terms, dones, instabilities and episode outcomes of three rollouts
-  (default protocol; short episodes with resets, successes and a forced NaN; joint action mode
+* Across code versions (a script, not a test: it needs a recording from the older code):
+  ``python tests/test_sim_perf_equivalence.py --record ref.npz`` with the old code, then ``--check ref.npz``
+  with the new: observations, rewards, reward terms, dones, instabilities and episode outcomes of three
+  rollouts (default protocol; short episodes with resets, successes and a forced NaN; joint action mode
   single-threaded) must be identical (floats to 1e-12, the rest exactly).
 """
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -111,22 +110,23 @@ def record(path: str) -> None:
     np.savez(path, **arrays)
 
 
-@pytest.mark.skipif(not os.environ.get("DGZ_SIM_REFERENCE"), reason="DGZ_SIM_REFERENCE not set (a recorded .npz)")
-@pytest.mark.parametrize("name", list(CASES))
-def test_rollout_matches_recorded_reference(name):
-    ref = np.load(os.environ["DGZ_SIM_REFERENCE"])
+def check(path: str) -> None:
+    """Replay the cases and compare with a reference recorded by an older version of the code."""
+    ref = np.load(path)
     if list(ref["hands"]) != _hands():
-        pytest.skip("reference recorded with another hand set (DGZ_ASSET_ROOT differs)")
-    got = rollout(name)
-    for k, v in got.items():
-        want = ref[f"{name}/{k}"]
-        assert v.shape == want.shape, k
-        if v.dtype.kind == "f":
-            np.testing.assert_allclose(v, want, rtol=0, atol=1e-12, err_msg=k)
-        else:
-            assert np.array_equal(v, want), k
-    if name == "short":
-        assert got["instabilities"] >= 1 and got["episode"].shape[0] > 8 and got["episode"][:, 2].any()
+        sys.exit(f"{path} was recorded with hands {list(ref['hands'])}, this run has {_hands()}: set DGZ_ASSET_ROOT alike")
+    for name in CASES:
+        got = rollout(name)
+        for k, v in got.items():
+            want = ref[f"{name}/{k}"]
+            assert v.shape == want.shape, (name, k)
+            if v.dtype.kind == "f":
+                np.testing.assert_allclose(v, want, rtol=0, atol=1e-12, err_msg=f"{name}/{k}")
+            else:
+                assert np.array_equal(v, want), (name, k)
+        if name == "short":
+            assert got["instabilities"] >= 1 and got["episode"].shape[0] > 8 and got["episode"][:, 2].any()
+        print(f"{name}: identical")
 
 
 # ------------------------------------------------------------------ vectorized pieces vs. a per-slot loop
@@ -228,8 +228,8 @@ def test_pyramidal_cone_slots_mixed_into_a_batch():
 
 
 if __name__ == "__main__":
-    if len(sys.argv) == 3 and sys.argv[1] == "--record":
-        record(sys.argv[2])
-        print("recorded", sys.argv[2])
+    if len(sys.argv) == 3 and sys.argv[1] in ("--record", "--check"):
+        (record if sys.argv[1] == "--record" else check)(sys.argv[2])
+        print("done:", sys.argv[1][2:], sys.argv[2])
     else:
-        sys.exit("usage: python tests/test_sim_perf_equivalence.py --record FILE.npz")
+        sys.exit("usage: python tests/test_sim_perf_equivalence.py --record FILE.npz | --check FILE.npz")
