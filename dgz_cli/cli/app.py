@@ -204,7 +204,7 @@ def deploy(
     port: Optional[str] = typer.Option(None, "--port", help="serial port (prefer /dev/serial/by-id/...), or sim"),
     policy: str = typer.Option("scripted", "--policy",
                                help="'scripted', a trained checkpoint folder or a name under policies/ "
-                                    "(e.g. dgz-cpu-first), or package.module:factory (called with the HandSpec)"),
+                                    "(e.g. dgz-cpu-warmstart), or package.module:factory (called with the HandSpec)"),
     object_points: Optional[Path] = typer.Option(None, "--object-points",
                                                  help="object point cloud: .npy (P, 3) or 'x y z' lines, metres, "
                                                       "palm frame (f, l, n) at the start pose; or sphere, box, "
