@@ -175,10 +175,8 @@ class Trainer:
                 clone_success.append(round(parts[-1].success_rate, 4))
             collect_s += time.perf_counter() - tc
             torch.set_num_threads(cfg.torch_threads)
-            stats = bc.pretrain(self.model, bc.Demonstrations.concat(parts), epochs=cfg.bc_epochs, seed=cfg.seed + round_)
-        with torch.no_grad():
-            self.model.log_std_wrist.fill_(cfg.bc_log_std)
-            self.model.log_std_prim.fill_(cfg.bc_log_std)
+            stats = bc.pretrain(self.model, bc.Demonstrations.concat(parts), epochs=cfg.bc_epochs,
+                                log_std=cfg.bc_log_std, seed=cfg.seed + round_)
         self.warm_start = dict(teacher="scripted", episodes=sum(p.episodes for p in parts),
                                teacher_success_rate=parts[0].success_rate, dagger_rounds=cfg.bc_dagger_rounds,
                                clone_success_rates=clone_success, collect_s=round(collect_s, 1),
