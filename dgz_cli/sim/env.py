@@ -120,13 +120,20 @@ class GraspEnv:
         velocities), ``q`` / ``qd`` (B, L), ``wq`` (B, 6), ``force`` (B, N) contact normal force per node (N)."""
         B, N, L, buf = self.B, self.N, self.L, self.buf
         xmat = buf["xmat"].reshape(B, N + 2, 3, 3)
-        palm_link_rot = xmat[:, N + 1]
+        nodes, palm_pos, palm_rot = self._frames()
         return dict(
-            nodes=observe.node_positions(buf["xpos"][:, :N], xmat[:, :N], self.node_point),
-            palm_rot=palm_link_rot @ self.palm_axes,
-            palm_pos=buf["xpos"][:, N + 1] + np.einsum("bij,bj->bi", palm_link_rot, self.palm_center),
+            nodes=nodes, palm_rot=palm_rot, palm_pos=palm_pos,
             obj_pos=buf["xpos"][:, N].copy(), obj_rot=xmat[:, N].copy(), obj_vel=buf["qd"][:, L:].copy(),
             q=buf["q"].copy(), qd=buf["qd"][:, :L].copy(), wq=buf["wq"].copy(), force=buf["force"].copy())
+
+    def _frames(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """From the batch buffers: node anchors (B, N, 3), palm centre (B, 3) and palm frame (B, 3, 3;
+        columns f, l, n), world frame."""
+        B, N, buf = self.B, self.N, self.buf
+        xpos, xmat = buf["xpos"], buf["xmat"].reshape(B, N + 2, 3, 3)
+        palm_link_rot = xmat[:, N + 1]
+        palm_pos = xpos[:, N + 1] + np.einsum("bij,bj->bi", palm_link_rot, self.palm_center)
+        return observe.node_positions(xpos[:, :N], xmat[:, :N], self.node_point), palm_pos, palm_link_rot @ self.palm_axes
 
     @property
     def action_dim(self) -> int:
@@ -261,12 +268,9 @@ class GraspEnv:
         contact = force > 1e-6
         B, N, L = self.B, self.N, self.L
         xpos, xmat = buf["xpos"], buf["xmat"].reshape(B, N + 2, 3, 3)
-        body_pos, body_rot, q, qd = xpos[:, :N], xmat[:, :N], buf["q"], buf["qd"][:, :L]
+        q, qd = buf["q"], buf["qd"][:, :L]
         obj_pos, obj_rot, obj_vel = xpos[:, N], xmat[:, N], buf["qd"][:, L:]
-        palm_link_rot = xmat[:, N + 1]
-        palm_rot = palm_link_rot @ self.palm_axes
-        palm_pos = xpos[:, N + 1] + np.einsum("bij,bj->bi", palm_link_rot, self.palm_center)
-        nodes = observe.node_positions(body_pos, body_rot, self.node_point)
+        nodes, palm_pos, palm_rot = self._frames()
         d_world = observe.nearest_surface(nodes, obj_pos, obj_rot, self.cloud, self.cloud_pre)
         d_world *= self.node_valid[..., None]
         dt = 1.0 / cfg.control_hz

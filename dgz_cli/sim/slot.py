@@ -36,7 +36,6 @@ class Slot:
         self.model, self.idx = model, index
         self.data = mujoco.MjData(model)
         self.n_joints = len(index.hand_qadr)
-        self.obj_geom = model.geom_bodyid == index.object_body
         self.pair_node = contact_table(model, index) if pair_node is None else pair_node
         self._elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
         self._period = cfg.substeps * model.opt.timestep
