@@ -18,7 +18,8 @@ from conftest import REPO, asset_root, needs_assets
 from dgz_cli.cli import deploy_cmd
 from dgz_cli.runtime.policy import load_policy
 from dgz_cli.runtime.steplog import read_log
-from dgz_cli.runtime.trained import TrainedPolicy, resolve_checkpoint
+from dgz_cli.rl.checkpoint import resolve_checkpoint
+from dgz_cli.runtime.trained import TrainedPolicy
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import load_spec

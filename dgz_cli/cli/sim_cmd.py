@@ -121,12 +121,10 @@ def _policy_factory(policy: str):
         from dgz_cli.sim.scripted import ScriptedGrasp
 
         return (lambda env: ScriptedGrasp(env.N, env.grasp_offset)), None
+    from dgz_cli.rl.checkpoint import resolve_checkpoint
     from dgz_cli.rl.runner import load_policy
 
-    path = Path(policy)
-    if not path.exists() and (Path(__file__).resolve().parents[2] / "policies" / policy).is_dir():
-        path = Path(__file__).resolve().parents[2] / "policies" / policy
-    model, meta = load_policy(path)
+    model, meta = load_policy(resolve_checkpoint(policy) or Path(policy))
     return (lambda env: _Trained(model)), meta
 
 

@@ -30,6 +30,19 @@ def git_revision(repo: Path | None = None) -> str | None:
     return out.stdout.strip() + ("-dirty" if dirty.returncode == 0 and dirty.stdout.strip() else "")
 
 
+POLICIES_DIR = Path(__file__).resolve().parents[2] / "policies"
+
+
+def resolve_checkpoint(ref: str) -> Path | None:
+    """A checkpoint folder path, or the name of a folder under ``policies/``; None when neither exists."""
+    path = Path(ref)
+    if path.is_dir():
+        return path
+    if "/" not in ref and (POLICIES_DIR / ref).is_dir():
+        return POLICIES_DIR / ref
+    return None
+
+
 def spec_hash(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 

@@ -109,7 +109,8 @@ def check_privileged(policy: Any, name: str, allow_privileged: bool = False) -> 
 
 def load_policy(ref: str, spec: HandSpec, allow_privileged: bool = False, asset_root: str | None = None) -> Any:
     """``scripted``, a checkpoint folder or ``policies/`` name, or ``package.module:factory``."""
-    from dgz_cli.runtime.trained import TrainedPolicy, resolve_checkpoint
+    from dgz_cli.rl.checkpoint import resolve_checkpoint
+    from dgz_cli.runtime.trained import TrainedPolicy
 
     checkpoint = None if ref == "scripted" else resolve_checkpoint(ref)
     if ref == "scripted":

@@ -25,19 +25,8 @@ from dgz_cli.runtime.policy import check_privileged
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.models import HandSpec
 
-POLICIES_DIR = Path(__file__).resolve().parents[2] / "policies"
 ASSUMED_PRIVILEGED = ("contact", "force")
 KNOWN_INPUTS = frozenset({"contact", "force"})
-
-
-def resolve_checkpoint(ref: str) -> Path | None:
-    """A folder path, or a name under ``policies/``; None when neither exists."""
-    path = Path(ref)
-    if path.is_dir():
-        return path
-    if "/" not in ref and (POLICIES_DIR / ref).is_dir():
-        return POLICIES_DIR / ref
-    return None
 
 
 def privileged_inputs(meta: dict, where: Path) -> frozenset[str]:
