@@ -23,7 +23,8 @@ def needs_assets():
 
 
 def shipped_specs() -> list[Path]:
-    return sorted(SPECS.glob("*.yaml"))
+    """``hand_specs/<hand>/spec.yaml`` of every shipped hand, by hand name."""
+    return sorted(SPECS.glob("*/spec.yaml"))
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from dgz_cli.spec.catalog import BUILTIN_PREFIX, resolve_urdf
 from dgz_cli.spec.io import load_spec
 
 
-@pytest.mark.parametrize("path", shipped_specs(), ids=[p.stem for p in shipped_specs()])
+@pytest.mark.parametrize("path", shipped_specs(), ids=[p.parent.name for p in shipped_specs()])
 def test_compiles_and_steps_without_warnings(path):
     import mujoco
 

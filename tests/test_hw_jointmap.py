@@ -9,7 +9,7 @@ import pytest
 import yaml
 from pydantic import ValidationError
 
-from dgz_cli.hw.config import HANDS_DIR, HandConfig, load_hand_config, shipped_hand_configs
+from dgz_cli.hw.config import HandConfig, hand_config_path, load_hand_config, shipped_hand_configs
 from dgz_cli.hw.errors import ConfigError
 from dgz_cli.hw.factory import load_hand
 from dgz_cli.hw.fakes.revo2 import MAX_DEG, MIN_DEG
@@ -93,7 +93,7 @@ def test_leap_pi_offset_and_clipping():
 
 
 def _raw(hand: str) -> dict:
-    return yaml.safe_load((HANDS_DIR / f"{hand}.yaml").read_text())
+    return yaml.safe_load(hand_config_path(hand).read_text())
 
 
 def test_config_validation(tmp_path):

@@ -40,7 +40,7 @@ def rest(spec) -> np.ndarray:
 
 
 @needs_assets()
-@pytest.mark.parametrize("path", shipped_specs(), ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", shipped_specs(), ids=lambda p: p.parent.name)
 def test_thumb_opens_on_every_shipped_hand(path):
     spec = load_spec(path)
     q, note = deploy_start_pose(spec, None, str(asset_root()))

@@ -13,7 +13,7 @@ from dgz_cli.runtime.safety import SafetyConfig, SafetyFilter, UnsafeAction
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import load_spec
 
-SPEC = load_spec("hand_specs/dgz_tri.yaml")
+SPEC = load_spec("hand_specs/dgz_tri/spec.yaml")
 NODES = [n.id for n in SPEC.nodes]
 JOINTS = [j.joint for j in SPEC.joints]
 

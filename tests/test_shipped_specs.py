@@ -14,7 +14,7 @@ from dgz_cli.spec.catalog import BUILTIN_PREFIX, resolve_urdf
 from dgz_cli.spec.io import load_spec, spec_to_yaml
 
 SPECS = shipped_specs()
-IDS = [p.stem for p in SPECS]
+IDS = [p.parent.name for p in SPECS]
 
 
 def _urdf(spec):

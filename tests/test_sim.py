@@ -15,7 +15,7 @@ from dgz_cli.sim.scene import build_scene
 from dgz_cli.spec.catalog import BUILTIN_PREFIX
 from dgz_cli.spec.io import load_spec
 
-TRI = load_spec(next(p for p in shipped_specs() if p.stem == "dgz_tri"))
+TRI = load_spec(next(p for p in shipped_specs() if p.parent.name == "dgz_tri"))
 SPHERE = resolve_objects("sphere")[0]
 
 
@@ -26,7 +26,7 @@ def _spec_or_skip(path):
     return spec
 
 
-@pytest.mark.parametrize("path", shipped_specs(), ids=[p.stem for p in shipped_specs()])
+@pytest.mark.parametrize("path", shipped_specs(), ids=[p.parent.name for p in shipped_specs()])
 def test_scene_steps_one_second_of_random_actions_without_warnings(path):
     import mujoco
 
@@ -114,8 +114,8 @@ def _pairs():
 
 @pytest.mark.skipif(asset_root() is None, reason="DGZ_ASSET_ROOT not set: vendor hand assets unavailable (CI sets it)")
 def test_mixed_hand_batch_pads_and_masks():
-    leap = load_spec(next(p for p in shipped_specs() if p.stem == "leap"))
-    shadow = load_spec(next(p for p in shipped_specs() if p.stem == "shadow"))
+    leap = load_spec(next(p for p in shipped_specs() if p.parent.name == "leap"))
+    shadow = load_spec(next(p for p in shipped_specs() if p.parent.name == "shadow"))
     env = GraspEnv([(TRI, SPHERE), (leap, SPHERE), (shadow, SPHERE)], seed=0, asset_root=str(asset_root()))
     obs = env.reset()
     n = [len(TRI.nodes), len(leap.nodes), len(shadow.nodes)]

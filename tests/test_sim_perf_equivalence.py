@@ -39,7 +39,7 @@ EPISODE_KEYS = ("success", "unstable", "return_", "steps", "max_rise", "r_dis", 
 
 
 def _spec(stem: str):
-    return load_spec(next(p for p in shipped_specs() if p.stem == stem))
+    return load_spec(next(p for p in shipped_specs() if p.parent.name == stem))
 
 
 def _hands() -> list[str]:

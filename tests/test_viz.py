@@ -13,7 +13,7 @@ from dgz_cli.viz.show import graph_table_rows
 
 
 def test_table_rows_match_spec():
-    spec = load_spec(SPECS / "dgz_tri.yaml")
+    spec = load_spec(SPECS / "dgz_tri" / "spec.yaml")
     rows = graph_table_rows(spec)
     assert [r[0] for r in rows] == [n.id for n in spec.nodes]
     for (nid, _, _, _, joints, mask), node in zip(rows, spec.nodes):

@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
-# Re-generate every shipped spec in hand_specs/ from its URDF (vendor URDFs under $DGZ_ASSET_ROOT).
+# Re-generate every shipped spec hand_specs/<hand>/spec.yaml from its URDF (vendor URDFs under $DGZ_ASSET_ROOT),
+# with the human overrides of hand_specs/<hand>/overrides.yaml where the hand has them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 : "${DGZ_ASSET_ROOT:?set DGZ_ASSET_ROOT to the folder holding hands/ (e.g. ../shared/assets)}"
 DGZ=${DGZ:-.venv/bin/dgz}
 H="$DGZ_ASSET_ROOT/hands"
 onboard() { # name urdf
-  local ov=hand_specs/overrides/$1.yaml
-  if [ -f "$ov" ]; then "$DGZ" onboard "$2" --name "$1" -o "hand_specs/$1.yaml" --overrides "$ov" >/dev/null
-  else "$DGZ" onboard "$2" --name "$1" -o "hand_specs/$1.yaml" >/dev/null; fi
+  local ov=hand_specs/$1/overrides.yaml
+  if [ -f "$ov" ]; then "$DGZ" onboard "$2" --name "$1" -o "hand_specs/$1/spec.yaml" --overrides "$ov" >/dev/null
+  else "$DGZ" onboard "$2" --name "$1" -o "hand_specs/$1/spec.yaml" >/dev/null; fi
   echo "onboarded $1"
 }
 onboard allegro "$H/allegro/urdf/allegro_hand_right.urdf"

@@ -1,4 +1,4 @@
-"""Per-hand facts as data: ``dgz_cli/hw/hands/<hand>.yaml`` validated by a frozen pydantic model.
+"""Per-hand facts as data: ``hand_specs/<hand>/hardware.yaml`` validated by a frozen pydantic model.
 
 A hand whose wire protocol is already implemented needs only such a file (no code). Channels are listed
 in the device's own order; each names the HandSpec joint it drives (``joints[].joint`` in hand_specs/).
@@ -20,10 +20,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dgz_cli.hw.errors import ConfigError
+from dgz_cli.spec.catalog import HARDWARE_FILE, hand_dir, shipped_hands
 
 M = TypeVar("M", bound=BaseModel)
-
-HANDS_DIR = Path(__file__).resolve().parent / "hands"
 
 
 class Frozen(BaseModel):
@@ -117,16 +116,20 @@ class HandConfig(Frozen):
 
 
 def shipped_hand_configs() -> list[str]:
-    return sorted(p.stem for p in HANDS_DIR.glob("*.yaml"))
+    """Shipped hands that have a hardware file (``hand_specs/<hand>/hardware.yaml``)."""
+    return [h for h in shipped_hands() if (hand_dir(h) / HARDWARE_FILE).is_file()]
 
 
 def hand_config_path(name_or_path: str) -> Path:
+    """A shipped hand name (``leap``), a hand folder or a path to a hand file → the hand file's path."""
     p = Path(name_or_path)
+    if (p / HARDWARE_FILE).is_file():
+        return p / HARDWARE_FILE
     if p.suffix in (".yaml", ".yml"):
         if not p.is_file():
             raise ConfigError(f"{p}: no such hand file", "check the path")
         return p
-    candidate = HANDS_DIR / f"{name_or_path}.yaml"
+    candidate = hand_dir(name_or_path) / HARDWARE_FILE
     if not candidate.is_file():
         known = ", ".join(shipped_hand_configs())
         raise ConfigError(f"no hardware driver file for hand '{name_or_path}'",

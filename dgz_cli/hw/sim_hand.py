@@ -15,7 +15,8 @@ from dgz_cli.hw.driver import DeviceInfo, HandDriver, HandState
 from dgz_cli.hw.errors import HardwareError
 from dgz_cli.spec.catalog import resolve_urdf
 from dgz_cli.spec.models import HandSpec
-from dgz_cli.spec.urdfxml import captured_mujoco_warnings, mujoco_xml, read_robot_xml
+from dgz_cli.spec.kinematics import hand_xml
+from dgz_cli.spec.urdfxml import captured_mujoco_warnings
 
 
 def build_model(spec: HandSpec, asset_root: str | None = None, kp: float = 2.0, kv: float = 0.05,
@@ -24,10 +25,9 @@ def build_model(spec: HandSpec, asset_root: str | None = None, kp: float = 2.0, 
     import mujoco
 
     urdf = resolve_urdf(spec.provenance.urdf, asset_root)
-    robot = read_robot_xml(urdf, spec.provenance.xacro_args)
     with captured_mujoco_warnings():
         try:
-            ms = mujoco.MjSpec.from_string(mujoco_xml(robot))
+            ms = mujoco.MjSpec.from_string(hand_xml(spec, asset_root))
         except ValueError as exc:
             raise HardwareError(f"sim: MuJoCo cannot load {urdf}: {' '.join(str(exc).split())}",
                                 f"run `dgz lint {spec.name}` to find the broken element") from None
@@ -79,7 +79,7 @@ class SimHand(HandDriver):
         self._gain = self.model.actuator_gainprm[self.acts, 0].copy()
         self._bias = self.model.actuator_biasprm[self.acts, :3].copy()
         self.data = mujoco.MjData(self.model)
-        q0 = np.clip(0.0, self.lo, self.hi)
+        q0 = self.spec.rest_pose()
         self.data.qpos[self.qadr] = q0
         self.data.ctrl[self.acts] = q0
         mujoco.mj_forward(self.model, self.data)

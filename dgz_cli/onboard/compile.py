@@ -8,13 +8,13 @@ survive, and MuJoCo turns URDF ``<mimic>`` into joint equality constraints.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from lxml import etree
 
 from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.errors import UrdfError
+from dgz_cli.spec.kinematics import ForwardKinematics, rest_pose
+from dgz_cli.spec.models import MimicJoint
 from dgz_cli.spec.urdfxml import RobotXml, captured_mujoco_warnings, mujoco_xml
 
 
@@ -42,55 +42,38 @@ def compile_model(kin: Kinematics):
     return compile_with_warnings(kin)[0]
 
 
-@dataclass
 class Poser:
-    """Forward kinematics of a compiled hand at arbitrary joint values.
+    """Forward kinematics of a compiled hand at arbitrary joint values, by joint and link name: the shared
+    :class:`~dgz_cli.spec.kinematics.ForwardKinematics` driven by the URDF's actuated joints, its mimic
+    joints following their source (``q = multiplier·q_src + offset``), exactly as the equality constraints
+    would hold them. Positions are world-frame 3-vectors (m)."""
 
-    Mimic joints follow their source joint (``q = multiplier·q_src + offset``), exactly as the
-    equality constraints would hold them. Positions are world-frame 3-vectors (m).
-    """
-
-    kin: Kinematics
-    model: object
-
-    def __post_init__(self) -> None:
-        import mujoco
-
-        self._mj = mujoco
-        self.data = mujoco.MjData(self.model)
-        self.qadr = {}
-        for name, j in self.kin.joints.items():
-            if j.movable:
-                jid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)
-                if jid < 0:
-                    raise UrdfError(f"{self.kin.source}: joint '{name}' vanished in MuJoCo", "report this URDF")
-                self.qadr[name] = int(self.model.jnt_qposadr[jid])
-        self.body = {}
-        for link in self.kin.links:
-            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, link)
-            self.body[link] = bid if bid >= 0 else 0  # the root link is merged into the world body
+    def __init__(self, kin: Kinematics, model) -> None:
+        self.kin, self.model = kin, model
+        self.actuated = [j.name for j in kin.actuated]
+        mimic = [MimicJoint(joint=j.name, source=j.mimic.joint, multiplier=j.mimic.multiplier,
+                            offset=j.mimic.offset, node=None)
+                 for j in kin.joints.values() if j.movable and j.mimic is not None]
+        try:
+            self.fk = ForwardKinematics(model, self.actuated, mimic)
+        except UrdfError as exc:
+            raise UrdfError(f"{kin.source}: {exc.message}", "report this URDF") from None
+        self.data = self.fk.data
+        self.body = {link: self.fk.body(link) for link in kin.links}
 
     def rest(self) -> dict[str, float]:
         """Zero pose clipped into every actuated joint's range."""
-        return {j.name: float(np.clip(0.0, j.lower, j.upper)) for j in self.kin.actuated}
-
-    def full(self, q: dict[str, float]) -> dict[str, float]:
-        """Actuated values → values for every movable joint (mimics follow, clipped to their range)."""
-        out = dict(q)
-        for j in self.kin.joints.values():
-            if j.movable and j.mimic is not None:
-                v = j.mimic.multiplier * out.get(j.mimic.joint, 0.0) + j.mimic.offset
-                out[j.name] = float(np.clip(v, j.lower, j.upper)) if j.type != "continuous" else v
-        return out
+        values = rest_pose([j.lower for j in self.kin.actuated], [j.upper for j in self.kin.actuated])
+        return dict(zip(self.actuated, values.tolist()))
 
     def pose(self, q: dict[str, float], extra: dict[str, float] | None = None) -> None:
-        """Set the model to actuated values ``q`` (+ ``extra`` offsets on any joint) and run kinematics."""
-        self.data.qpos[:] = 0.0
-        for name, v in self.full(q).items():
-            self.data.qpos[self.qadr[name]] = v
-        for name, dv in (extra or {}).items():
-            self.data.qpos[self.qadr[name]] += dv
-        self._mj.mj_kinematics(self.model, self.data)
+        """Set the model to actuated values ``q`` (missing ones 0; mimics follow) + ``extra`` offsets on any
+        joint, and run kinematics."""
+        self.fk.pose(np.array([q.get(name, 0.0) for name in self.actuated]), extra)
+
+    def value(self, joint: str) -> float:
+        """Value of any movable joint at the current pose (a mimic joint's as it follows its source)."""
+        return self.fk.value(joint)
 
     def link_pos(self, link: str, local: np.ndarray | None = None) -> np.ndarray:
         b = self.body[link]
@@ -103,16 +86,16 @@ class Poser:
         return self.data.xmat[self.body[link]].reshape(3, 3).copy()
 
     def joint_anchor(self, name: str) -> np.ndarray:
-        jid = self._mj.mj_name2id(self.model, self._mj.mjtObj.mjOBJ_JOINT, name)
-        return self.data.xanchor[jid].copy()
+        return self.data.xanchor[self.fk.joint_id(name)].copy()
 
     def joint_axis(self, name: str) -> np.ndarray:
-        jid = self._mj.mj_name2id(self.model, self._mj.mjtObj.mjOBJ_JOINT, name)
-        return self.data.xaxis[jid].copy()
+        return self.data.xaxis[self.fk.joint_id(name)].copy()
 
     def geom_points(self, links: list[str]) -> np.ndarray:
         """World-frame surface sample points (K, 3) of the collision geoms attached to ``links``."""
-        mj, m, d = self._mj, self.model, self.data
+        import mujoco as mj
+
+        m, d = self.model, self.data
         bodies = {self.body[l] for l in links}
         pts = []
         for g in range(m.ngeom):

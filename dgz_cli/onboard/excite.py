@@ -28,6 +28,7 @@ from dgz_cli.onboard.compile import Poser
 from dgz_cli.onboard.frame import PalmFrame, tip_positions
 from dgz_cli.onboard.structure import Structure
 from dgz_cli.onboard.urdf import Kinematics
+from dgz_cli.spec.kinematics import rest_pose
 
 PRIMITIVES = ("FLEX", "ABD", "ROT")
 
@@ -86,7 +87,7 @@ class Exciter:
         anchor = self.poser.joint_anchor(joint)
         rot_link = tip_link or self.st.chains[0].tip_link
         r0 = self.poser.link_rot(rot_link)
-        value = self.poser.full(q)[joint]
+        value = self.poser.value(joint)
         step = self.cfg.delta if value + self.cfg.delta <= j.upper or j.type == "continuous" else -self.cfg.delta
         q1 = dict(q)
         if j.actuated:
@@ -226,7 +227,7 @@ class Exciter:
         sign = 1 if gaps[1] < gaps[-1] else -1
         strength = min(1.0, abs(gaps[1] - gaps[-1]) / max(gaps[1], gaps[-1], 1e-9) * 10)
         if strength < 0.1:  # no clear winner: the wider side of the range is the functional one (flagged)
-            rest = float(np.clip(0.0, j.lower, j.upper))
+            rest = float(rest_pose(j.lower, j.upper))
             sign = 1 if (j.upper - rest) >= (rest - j.lower) else -1
         return sign, strength
 

@@ -23,6 +23,7 @@ from dgz_cli.onboard.compile import Poser
 from dgz_cli.onboard.structure import Structure
 from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.errors import OnboardError
+from dgz_cli.spec.kinematics import rest_pose
 
 CLASS_NAMES = {1: ["middle"], 2: ["middle", "ring"], 3: ["index", "middle", "ring"],
                4: ["index", "middle", "ring", "little"]}
@@ -52,7 +53,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 def closing_sign(kin: Kinematics, joint: str) -> float:
     j = kin.joints[joint]
-    rest = float(np.clip(0.0, j.lower, j.upper))
+    rest = float(rest_pose(j.lower, j.upper))
     return 1.0 if (j.upper - rest) >= (rest - j.lower) else -1.0
 
 

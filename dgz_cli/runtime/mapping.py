@@ -43,7 +43,7 @@ def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None, base: 
     flat open hand on the shipped hands); then the hand file's ``start_pose`` entries, clipped."""
     lo = np.array([j.lower for j in spec.joints], dtype=float)
     hi = np.array([j.upper for j in spec.joints], dtype=float)
-    q = np.clip(np.zeros(len(lo)) if base is None else np.asarray(base, dtype=float), lo, hi)
+    q = spec.rest_pose() if base is None else np.clip(np.asarray(base, dtype=float), lo, hi)
     names = [j.joint for j in spec.joints]
     for name, value in (overrides or {}).items():
         if name not in names:

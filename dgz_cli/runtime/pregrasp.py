@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dgz_cli.runtime.kinematics import HandKinematics
+from dgz_cli.spec.kinematics import HandKinematics
 from dgz_cli.runtime.mapping import start_pose
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.models import HandSpec
@@ -40,7 +40,7 @@ def thumb_open_pose(spec: HandSpec, kin: HandKinematics | None = None) -> np.nda
     """(L,) rest pose with the thumb opened as described above; without ``kin`` only FLEX is opened."""
     lo = np.array([r.lower for r in spec.joints], dtype=float)
     hi = np.array([r.upper for r in spec.joints], dtype=float)
-    q = np.clip(0.0, lo, hi)
+    q = spec.rest_pose()
     thumb = {n.id for n in spec.nodes if n.finger == "thumb"}
     rows = [(i, r) for i, r in enumerate(spec.joints) if r.node in thumb]
     for i, r in rows:

@@ -17,6 +17,7 @@ import numpy as np
 from dgz_cli.sim.config import EnvConfig
 from dgz_cli.sim.objects import ObjectModel, object_spec, surface_points
 from dgz_cli.spec.catalog import resolve_urdf
+from dgz_cli.spec.kinematics import ForwardKinematics, palm_axes, to_frame
 from dgz_cli.spec.models import FINGER_CLASSES, NODE_TYPES, PRIMITIVES, HandSpec
 from dgz_cli.spec.urdfxml import captured_mujoco_warnings, mujoco_xml, read_robot_xml
 
@@ -85,19 +86,11 @@ def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
 def palm_in_root(spec: HandSpec, hand) -> tuple[np.ndarray, np.ndarray]:
     """Palm frame axes (3, 3; columns f, l, n) and palm centre (3,) in the frame the hand is attached by
     (the hand model's world frame; a URDF link named ``world`` is that frame), open hand."""
-    import mujoco
-
     with captured_mujoco_warnings():
         model = hand.compile()
-    data = mujoco.MjData(model)
-    for r in spec.joints:
-        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, r.joint)
-        data.qpos[model.jnt_qposadr[jid]] = np.clip(0.0, r.lower, r.upper)
-    mujoco.mj_kinematics(model, data)
-    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, spec.palm.link)
-    rot, pos = data.xmat[bid].reshape(3, 3), data.xpos[bid]
-    axes = np.stack([spec.palm.finger_axis, spec.palm.lateral, spec.palm.normal], axis=1)
-    return rot @ axes, rot @ np.array(spec.palm.center) + pos
+    fk = ForwardKinematics(model, [r.joint for r in spec.joints], spec.mimic)
+    fk.pose(spec.rest_pose())
+    return fk.palm_frame(spec.palm)
 
 
 @functools.lru_cache(maxsize=16)
@@ -194,35 +187,31 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
 
     hand_j = [jid(HAND_PREFIX + r.joint) for r in spec.joints]
-    node_body = np.array([bid(HAND_PREFIX + n.anchor_link) for n in spec.nodes])
-    palm = bid(HAND_PREFIX + spec.palm.link)
+    # the open hand in the wrist mount's frame (wrist joints at 0): palm frame and node anchors. Mimic
+    # joints stay at 0 here (not at their offsets), as every scene and policy so far was built with.
+    fk = ForwardKinematics(model, [r.joint for r in spec.joints], prefix=HAND_PREFIX)
+    node_body = np.array([fk.body(n.anchor_link) for n in spec.nodes])
+    node_point = np.array([n.anchor_point for n in spec.nodes], dtype=float)
+    palm = fk.body(spec.palm.link)
     owner = _node_of_body(spec, model, HAND_PREFIX)
     geom_node = np.array([owner.get(int(model.geom_bodyid[g]), -1) for g in range(model.ngeom)])
     obj_body = bid(OBJECT_PREFIX + "object")
     obj_j = model.body_jntadr[obj_body]
-    # the open hand in the wrist mount's frame (wrist joints at 0): palm frame and node anchors
-    rest_q = np.clip(0.0, [r.lower for r in spec.joints], [r.upper for r in spec.joints])
-    data = mujoco.MjData(model)
-    data.qpos[[model.jnt_qposadr[j] for j in hand_j]] = rest_q
-    mujoco.mj_kinematics(model, data)
+    rest_q = spec.rest_pose()
+    fk.pose(rest_q)
     wrist = bid("wrist")
-    r_m, p_m = data.xmat[wrist].reshape(3, 3), data.xpos[wrist]
-    r_p = data.xmat[palm].reshape(3, 3)
-    palm_axes_w = r_m.T @ r_p @ np.stack([spec.palm.finger_axis, spec.palm.lateral, spec.palm.normal], axis=1)
-    palm_center_w = r_m.T @ (r_p @ np.array(spec.palm.center) + data.xpos[palm] - p_m)
-    pts = np.array([n.anchor_point for n in spec.nodes], dtype=float)
-    anchors = np.einsum("nij,nj->ni", data.xmat[node_body].reshape(-1, 3, 3), pts) + data.xpos[node_body]
-    anchors = (anchors - p_m) @ r_m
+    palm_axes_w, palm_center_w = fk.palm_frame(spec.palm, base=wrist)
+    anchors = to_frame(fk.points(node_body, node_point), *fk.frame(wrist))
     return SceneIndex(
-        wrist_body=bid("wrist"),
+        wrist_body=wrist,
         wrist_qadr=np.array([model.jnt_qposadr[jid(n)] for n in WRIST_JOINTS]),
         hand_qadr=np.array([model.jnt_qposadr[j] for j in hand_j]),
         hand_dadr=np.array([model.jnt_dofadr[j] for j in hand_j]),
         limits=np.array([[r.lower, r.upper] for r in spec.joints]),
         node_body=node_body,
-        node_point=np.array([n.anchor_point for n in spec.nodes], dtype=float),
+        node_point=node_point,
         palm_body=palm,
-        palm_axes=np.stack([spec.palm.finger_axis, spec.palm.lateral, spec.palm.normal], axis=1),
+        palm_axes=palm_axes(spec.palm),
         palm_center=np.array(spec.palm.center, dtype=float),
         geom_node=geom_node,
         object_body=obj_body,

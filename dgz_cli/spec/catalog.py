@@ -1,7 +1,9 @@
-"""Where things live: shipped hand specs (``hand_specs/`` is the registry) and the asset root.
+"""Where things live: shipped hands (``hand_specs/`` is the registry) and the asset root.
 
-A spec names its URDF relative to the asset root (``--asset-root`` or ``DGZ_ASSET_ROOT``), or
-as ``dgz://hands/<file>`` for the small hand models shipped inside the package.
+One hand, one folder: ``hand_specs/<hand>/`` holds ``spec.yaml`` (the HandSpec), ``overrides.yaml``
+(human overrides, if any), ``hardware.yaml`` (the hardware control table, if the hand has a driver)
+and a provenance ``README.md``. A spec names its URDF relative to the asset root (``--asset-root``
+or ``DGZ_ASSET_ROOT``), or as ``dgz://hands/<file>`` for the small hand models shipped inside the package.
 """
 
 from __future__ import annotations
@@ -15,29 +17,47 @@ ASSET_ENV = "DGZ_ASSET_ROOT"
 SPECS_ENV = "DGZ_HAND_SPECS"
 PACKAGE_DATA = Path(__file__).resolve().parents[1] / "data"
 BUILTIN_PREFIX = "dgz://"
+SPEC_FILE = "spec.yaml"
+HARDWARE_FILE = "hardware.yaml"
 
 
 def specs_dir() -> Path:
-    """The shipped spec registry: $DGZ_HAND_SPECS, else ``hand_specs/`` beside the package."""
+    """The shipped hand registry: $DGZ_HAND_SPECS, else ``hand_specs/`` beside the package."""
     env = os.environ.get(SPECS_ENV)
     return Path(env) if env else Path(__file__).resolve().parents[2] / "hand_specs"
 
 
+def hand_dir(name: str) -> Path:
+    """The folder of shipped hand ``name`` (it may not exist)."""
+    return specs_dir() / name
+
+
 def shipped_hands() -> list[str]:
+    """Names of the shipped hands: the folders of the registry that hold a ``spec.yaml``."""
     d = specs_dir()
-    return sorted(p.stem for p in d.glob("*.yaml")) if d.is_dir() else []
+    return sorted(p.parent.name for p in d.glob(f"*/{SPEC_FILE}")) if d.is_dir() else []
+
+
+def hand_name(spec_path: Path) -> str:
+    """The name a spec file is known by: its folder's for ``<hand>/spec.yaml``, else the file stem."""
+    p = Path(spec_path)
+    return p.parent.resolve().name if p.name == SPEC_FILE else p.stem
 
 
 def resolve_spec(name_or_path: str) -> Path:
-    """A shipped hand name (``leap``) or a path to a spec file → the spec's path."""
+    """A shipped hand name (``leap``), a hand folder or a path to a spec file → the spec's path."""
     p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") or p.exists():
+    if (p / SPEC_FILE).is_file():
+        return p / SPEC_FILE
+    if p.suffix in (".yaml", ".yml") or (p.exists() and not p.is_dir()):
         if not p.is_file():
             raise SpecError(f"{p}: no such spec file", "check the path")
         return p
-    candidate = specs_dir() / f"{name_or_path}.yaml"
+    candidate = hand_dir(name_or_path) / SPEC_FILE
     if candidate.is_file():
         return candidate
+    if p.is_dir():
+        raise SpecError(f"{p}: the folder holds no {SPEC_FILE}", "name a spec file, a hand folder or a shipped hand")
     known = ", ".join(shipped_hands()) or "none found"
     raise SpecError(f"unknown hand '{name_or_path}'", f"use a spec path or one of: {known}")
 

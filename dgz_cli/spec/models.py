@@ -10,7 +10,10 @@ from __future__ import annotations
 from enum import Enum
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from dgz_cli.spec.kinematics import rest_pose
 
 SCHEMA_VERSION = 1
 PRIMITIVES = ("FLEX", "ABD", "ROT")
@@ -156,6 +159,10 @@ class HandSpec(Frozen):
     activation_mask: dict[str, list[int]] = Field(description="node id → [FLEX, ABD, ROT] ∈ {0,1}")
     features: Features
     overrides: Overrides = Field(default_factory=Overrides)
+
+    def rest_pose(self) -> np.ndarray:
+        """(L,) rest pose in ``joints`` order: every joint at 0 clipped into its limits (the flat open hand)."""
+        return rest_pose([r.lower for r in self.joints], [r.upper for r in self.joints])
 
     def node_index(self) -> dict[str, int]:
         return {n.id: i for i, n in enumerate(self.nodes)}
