@@ -42,3 +42,7 @@ class ConfigError(HardwareError):
 
 
 TRANSIENT = (BusTimeout, BusCrcError)
+
+
+class ImplausibleReading(HardwareError):
+    """A joint reading that cannot be real (NaN/inf, or far outside the joint's range): stop now, name the joint."""

@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from dgz_cli.hw.driver import DeviceInfo, HandState
-from dgz_cli.hw.errors import IdentityError
+from dgz_cli.hw.errors import IdentityError, ImplausibleReading
 from dgz_cli.hw.jointmap import JointMapper
 from dgz_cli.hw.modbus_hand import ModbusHand
 from dgz_cli.hw.modbus_rtu import to_signed
@@ -51,20 +51,33 @@ class InspireDriver(ModbusHand):
         angles = self.bus.read_holding(self.slave, ANGLE_ACT, 6)
         force = to_signed(self.bus.read_holding(self.slave, FORCE_ACT, 6))
         stamp = time.monotonic()
-        return HandState(q=self.mapper.to_rad(angles), effort=self.mapper.reorder(force), effort_kind="force",
+        return HandState(q=self._checked(self.mapper.to_rad(angles), angles), effort=self.mapper.reorder(force), effort_kind="force",
                          stamp=stamp, fingerprint=bytes(str(angles + force), "ascii"), native=list(angles))
 
     def write_targets(self, q: np.ndarray) -> None:
-        self.bus.write_multiple(self.slave, ANGLE_SET, self.mapper.to_native(q))
+        native = self._native_targets(q)
+        self.bus.write_multiple(self.slave, ANGLE_SET, native)
+        self._last_set = native
 
     def hold(self) -> None:
-        self.bus.write_multiple(self.slave, ANGLE_SET, self.bus.read_holding(self.slave, ANGLE_ACT, 6))
+        """ANGLE_SET := measured (checked for plausibility, clipped into the joint limits)."""
+        self.write_targets(self.read_state().q)
 
     def relax(self) -> None:
         """Open slowly (the linear actuators are self-locking: opening is how the hand lets go)."""
+        native = self._native_targets(self.open_pose())
         self.bus.write_multiple(self.slave, SPEED_SET, [self.settings.relax_speed] * 6)
-        self.bus.write_multiple(self.slave, ANGLE_SET, [1000] * 6)
+        self.bus.write_multiple(self.slave, ANGLE_SET, native)
+        self._last_set = native
 
     def torque_off(self) -> None:
-        """No torque-enable register: stop every finger where it is (self-locking actuators hold)."""
-        self.hold()
+        """No torque-enable register: stop every finger where it is (self-locking actuators hold).
+
+        When the position cannot be trusted, the last set-point dgz wrote is repeated (nothing is written
+        if dgz never commanded this hand: it is not being moved by dgz then)."""
+        try:
+            self.hold()
+        except ImplausibleReading:
+            last = getattr(self, "_last_set", None)
+            if last is not None:
+                self.bus.write_multiple(self.slave, ANGLE_SET, last)

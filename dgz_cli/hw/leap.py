@@ -2,7 +2,8 @@
 
 Connect pings every ID (the error lists the silent ones) and probes fast-sync-read once, keeping
 sync-read when it goes unanswered. ``enable()`` switches torque off, writes operating mode 5, P/I/D
-gains and the goal current, sets goal := present and switches torque on. Radians: rad_sim = ticks·2π/4096 − π.
+gains and the goal current, sets goal := present (clipped into the joint limits; an implausible reading stops
+before any write) and switches torque on. Radians: rad_sim = ticks·2π/4096 − π.
 """
 
 from __future__ import annotations
@@ -83,13 +84,14 @@ class LeapDriver(SerialHandDriver):
     def enable(self) -> None:
         s = self.settings
         n = len(self.ids)
+        goal = self._native_targets(self.read_state().q)  # checked reading, clipped goal: before any write
         self._sync_write(TORQUE_ENABLE, "<B", [0] * n)
         self._sync_write(OPERATING_MODE, "<B", [s.operating_mode] * n)
         self._sync_write(P_GAIN, "<H", [s.p_gain] * n)
         self._sync_write(I_GAIN, "<H", [s.i_gain] * n)
         self._sync_write(D_GAIN, "<H", [s.d_gain] * n)
         self._sync_write(GOAL_CURRENT, "<H", [s.goal_current] * n)
-        self._sync_write(GOAL_POSITION, "<i", self._present_ticks())
+        self._sync_write(GOAL_POSITION, "<i", goal)
         self._sync_write(TORQUE_ENABLE, "<B", [1] * n)
 
     def _read_present(self) -> dict[int, bytes]:
@@ -101,23 +103,20 @@ class LeapDriver(SerialHandDriver):
                                     "set dynamixel.fast_sync_read: false in the hand file") from None
         return self.bus.sync_read(PRESENT, 10, self.ids)
 
-    def _present_ticks(self) -> list[int]:
-        raw = self._read_present()
-        return [struct.unpack_from("<i", raw[i], 6)[0] for i in self.ids]
-
     def read_state(self) -> HandState:
         raw = self._read_present()
         stamp = time.monotonic()
         current = [struct.unpack_from("<h", raw[i], 0)[0] for i in self.ids]
         ticks = [struct.unpack_from("<i", raw[i], 6)[0] for i in self.ids]
-        return HandState(q=self.mapper.to_rad(ticks), effort=self.mapper.reorder(current), effort_kind="current_mA",
+        return HandState(q=self._checked(self.mapper.to_rad(ticks), ticks), effort=self.mapper.reorder(current), effort_kind="current_mA",
                          stamp=stamp, fingerprint=b"".join(raw[i] for i in self.ids), native=ticks)
 
     def write_targets(self, q: np.ndarray) -> None:
-        self._sync_write(GOAL_POSITION, "<i", self.mapper.to_native(q))
+        self._sync_write(GOAL_POSITION, "<i", self._native_targets(q))
 
     def hold(self) -> None:
-        self._sync_write(GOAL_POSITION, "<i", self._present_ticks())
+        """Goal := measured (checked for plausibility, clipped into the joint limits)."""
+        self.write_targets(self.read_state().q)
 
     def relax(self) -> None:
         """Torque off: the servos are backdrivable, the fingers fall open under their own weight."""

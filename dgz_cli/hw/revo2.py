@@ -23,6 +23,7 @@ from dgz_cli.hw.modbus_rtu import registers_to_ascii, to_signed
 SKU, UNIT_MODE, MIN_POS, MAX_POS = 901, 937, 946, 952
 POS_SPEED, PWM = 1022, 1046
 FEEDBACK, FIRMWARE, SERIAL = 2000, 3000, 3010
+MAX_LIMIT_DEG = 180  # a finger joint's range read from the device must lie inside ±180°
 
 
 class Revo2Driver(ModbusHand):
@@ -43,6 +44,13 @@ class Revo2Driver(ModbusHand):
             serial = registers_to_ascii(self._identify("the serial number", lambda: bus.read_input(s, SERIAL, 10)))
             lim = to_signed(self._identify("the position limits", lambda: bus.read_holding(s, MIN_POS, 12)))
             self.limits_deg = list(zip(lim[:6], lim[6:]))
+            bad = [(c.name, lo, hi) for c, (lo, hi) in zip(self.cfg.channels, self.limits_deg)
+                   if not (-MAX_LIMIT_DEG <= lo < hi <= MAX_LIMIT_DEG)]
+            if bad:
+                name, lo, hi = bad[0]
+                raise IdentityError(f"{self.port}: Revo2 reports position limits [{lo}, {hi}]° for '{name}' "
+                                    f"(registers {MIN_POS}/{MAX_POS}): not a finger's range (±{MAX_LIMIT_DEG}°)",
+                                    "check the firmware's unit mode and calibration with BrainCo's tool")
             self.mapper = JointMapper(self.cfg, self.spec, self.limits_deg, where=f"{self.port}: Revo2")
             self.unit_mode = self._identify("the unit mode (937)", lambda: bus.read_holding(s, UNIT_MODE, 1)[0])
         except BaseException:
@@ -71,7 +79,7 @@ class Revo2Driver(ModbusHand):
         stamp = time.monotonic()
         pos = regs[0:6]
         current = to_signed(regs[12:18])
-        return HandState(q=self.mapper.to_rad(pos), effort=self.mapper.reorder(current), effort_kind="current_mA",
+        return HandState(q=self._checked(self.mapper.to_rad(pos), pos), effort=self.mapper.reorder(current), effort_kind="current_mA",
                          stamp=stamp, fingerprint=bytes(str(regs), "ascii"), native=list(pos))
 
     def _write_native(self, native: list[int], speed: int) -> None:
@@ -81,11 +89,11 @@ class Revo2Driver(ModbusHand):
         self.bus.write_multiple(self.slave, POS_SPEED, words)
 
     def write_targets(self, q: np.ndarray) -> None:
-        self._write_native(self.mapper.to_native(q), self.settings.speed)
+        self._write_native(self._native_targets(q), self.settings.speed)
 
     def relax(self) -> None:
         """Open slowly (Revo2 fingers are not backdrivable: opening is how it lets go)."""
-        self._write_native([int(c.native[0]) for c in self.cfg.channels], self.settings.relax_speed)
+        self._write_native(self._native_targets(self.open_pose()), self.settings.relax_speed)
 
     def torque_off(self) -> None:
         """Zero PWM on every finger: the motors are unpowered and the fingers stay where they are."""

@@ -5,6 +5,10 @@ Fault switches (set ``fake.fault`` at any time, ``None`` clears):
 ``exception`` (every request is refused: Modbus exception 4 / Dynamixel hardware-alert status),
 ``stale`` (feedback frozen at the value it had when the switch was set), ``disconnect`` (the pty is
 closed: the driver's next read or write fails like an unplugged USB adapter).
+
+Corrupt readings: set ``fake.corrupt_position`` to a raw register value (e.g. 0x7FFFFFFF on Dynamixel,
+65535 on the Modbus hands) and every position reading returns it, on every channel or only on the
+channel indices (device order) in ``fake.corrupt_channels``. ``None`` clears it.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ class PtyFake:
         self._thread = threading.Thread(target=self._run, name=f"{self.name}-fake", daemon=True)
         self.requests = 0
         self.closed = False
+        self.corrupt_position: int | None = None
+        self.corrupt_channels: set[int] | None = None
         self._last = clock()
 
     # -- lifecycle ---------------------------------------------------------------------------------
@@ -77,6 +83,10 @@ class PtyFake:
             self._fault = value
             if value == "disconnect":
                 self._close_fds()
+
+    def corrupted(self, channel: int) -> bool:
+        """True if position readings of ``channel`` (device order) are to be replaced by ``corrupt_position``."""
+        return self.corrupt_position is not None and (self.corrupt_channels is None or channel in self.corrupt_channels)
 
     def freeze(self) -> None:
         """Subclasses snapshot their feedback here."""

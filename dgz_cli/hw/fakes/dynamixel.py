@@ -40,6 +40,8 @@ class DynamixelFake(PtyFake):
         self.tables: dict[int, bytearray] = {}
         self.pos: dict[int, float] = {}
         self._tick = 0
+        self.writes: list[tuple[int, int, bytes]] = []  # (id, address, data) of every write instruction
+        self.order = list(ids)
         for i in ids:
             t = bytearray(700)
             struct.pack_into("<H", t, 0, model)
@@ -121,6 +123,7 @@ class DynamixelFake(PtyFake):
         return bytes(self.tables[dxl_id][addr:addr + length])
 
     def _write(self, dxl_id: int, addr: int, data: bytes) -> None:
+        self.writes.append((dxl_id, addr, bytes(data)))
         t = self.tables[dxl_id]
         if addr < 64 and t[TORQUE]:
             return  # EEPROM area is locked while torque is on (a real motor answers an access error)
@@ -146,3 +149,5 @@ class DynamixelFake(PtyFake):
         struct.pack_into("<h", t, PRESENT_CURRENT, current)
         struct.pack_into("<i", t, PRESENT_VEL, int(self.rate / 60) if moving else 0)
         struct.pack_into("<i", t, PRESENT_POS, int(round(self.pos[dxl_id])))
+        if self.corrupted(self.order.index(dxl_id)):
+            struct.pack_into("<I", t, PRESENT_POS, self.corrupt_position & 0xFFFFFFFF)

@@ -48,7 +48,7 @@ class InspireFake(ModbusFake):
         for i in range(6):
             err = abs(self.goal[i] - self.angle[i])
             h[1534 + i] = u16(round(2000 - 2 * self.angle[i]))
-            h[1546 + i] = u16(round(self.angle[i]))
+            h[1546 + i] = u16(self.corrupt_position if self.corrupted(i) else round(self.angle[i]))
             h[1582 + i] = u16(-3 + (self.requests % 3) if err >= 1 else (self.requests % 3))
             h[1594 + i] = u16(50 + min(300, int(err)))
             h[1612 + i] = 1 if err >= 1 else 0

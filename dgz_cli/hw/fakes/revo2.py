@@ -67,7 +67,7 @@ class Revo2Fake(ModbusFake):
         jitter = self.requests % 3  # sensor noise: a live device never repeats a frame exactly
         for i in range(6):
             err = abs(self.goal[i] - self.pos[i])
-            self.input[2000 + i] = u16(round(self.pos[i]))
+            self.input[2000 + i] = u16(self.corrupt_position if self.corrupted(i) else round(self.pos[i]))
             self.input[2006 + i] = u16(0 if err < 1 else round(self.rate / 10))
             self.input[2012 + i] = u16(0 if self.pwm_off else 80 + min(400, int(err)) + jitter)
             self.input[2018 + i] = 0 if err < 1 else 1
