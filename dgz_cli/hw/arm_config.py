@@ -8,7 +8,7 @@ angles in degrees unless a field says rad.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -19,15 +19,20 @@ ARMS_DIR = Path(__file__).resolve().parent / "arms"
 
 
 class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+Metres = Annotated[float, Field(ge=-5.0, le=5.0, allow_inf_nan=False)]        # arm reach: a few metres at most
+MountMetres = Annotated[float, Field(ge=-1.0, le=1.0, allow_inf_nan=False)]   # hand root from the flange
+Degrees = Annotated[float, Field(ge=-360.0, le=360.0, allow_inf_nan=False)]
 
 
 class Workspace(_Frozen):
     """Axis-aligned box (m, arm base frame) the flange target must stay in."""
 
-    x: tuple[float, float]
-    y: tuple[float, float]
-    z: tuple[float, float]
+    x: tuple[Metres, Metres]
+    y: tuple[Metres, Metres]
+    z: tuple[Metres, Metres]
 
     @model_validator(mode="after")
     def _ordered(self) -> "Workspace":
@@ -41,16 +46,18 @@ class Workspace(_Frozen):
 class Mount(_Frozen):
     """The hand's root frame in the flange frame: translation (m) and fixed-axis roll/pitch/yaw (deg)."""
 
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    xyz: tuple[MountMetres, MountMetres, MountMetres] = (0.0, 0.0, 0.0)
+    rpy_deg: tuple[Degrees, Degrees, Degrees] = (0.0, 0.0, 0.0)
 
 
 class ArmConfig(_Frozen):
     name: str = Field(pattern=r"^[a-z0-9][a-z0-9_\-]*$")
     sdk: Literal["piper_sdk"] = Field(description="Python package that talks to the arm")
-    sdk_class: str = Field("C_PiperInterface", description="interface class in the SDK package")
-    can_port: str = Field("can0", description="SocketCAN interface (bring it up first: ip link set can0 up ...)")
-    ctrl_mode: int = Field(0x01, description="MotionCtrl_2 ctrl_mode: 0x01 = CAN command mode")
+    sdk_class: str = Field("C_PiperInterface", pattern=r"^C_Piper[A-Za-z0-9_]*$",
+                           description="interface class in the SDK package")
+    can_port: str = Field("can0", pattern=r"^[A-Za-z0-9_.\-]{1,15}$",
+                          description="SocketCAN interface (bring it up first: ip link set can0 up ...)")
+    ctrl_mode: int = Field(0x01, ge=0, le=0xFF, description="MotionCtrl_2 ctrl_mode: 0x01 = CAN command mode")
     move_mode: int = Field(0x00, ge=0, le=3, description="MotionCtrl_2 move_mode: 0x00 MOVE P (end pose)")
     speed_percent: int = Field(30, ge=1, le=100, description="MotionCtrl_2 move_spd_rate_ctrl")
     enable_timeout_s: float = Field(2.0, gt=0, le=30, description="wait this long for every motor to report enabled")

@@ -14,10 +14,11 @@ Native units ↔ radians (``conversion``):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal, TypeVar
+import math
+from typing import Annotated, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 from dgz_cli.hw.errors import ConfigError
 from dgz_cli.spec.catalog import HARDWARE_FILE, hand_dir, shipped_hands
@@ -26,11 +27,18 @@ M = TypeVar("M", bound=BaseModel)
 
 
 class Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+# bounds on the numbers a hand file may hold (a typo must fail at load, not as a motion)
+MAX_OFFSET_RAD = 2 * math.pi + 0.5     # a channel offset or start pose beyond a turn is a typo
+Radians = Annotated[float, Field(ge=-MAX_OFFSET_RAD, le=MAX_OFFSET_RAD, allow_inf_nan=False)]
+NATIVE_BOUNDS = {"dynamixel2": (-(2 ** 31) + 1, 2 ** 31 - 1), "inspire_modbus": (0, 0xFFFF),
+                 "revo2_modbus": (0, 0xFFFF)}  # int32 goal position / unsigned 16-bit Modbus register
 
 
 class PortSettings(Frozen):
-    baudrate: int = Field(gt=0)
+    baudrate: int = Field(gt=0, le=20_000_000)
     bytesize: Literal[7, 8] = 8
     parity: Literal["N", "E", "O"] = "N"
     stopbits: Literal[1, 2] = 1
@@ -42,7 +50,7 @@ class Channel(Frozen):
     id: int | None = Field(None, ge=0, le=252, description="bus id (Dynamixel motor id); Modbus: list order")
     joint: str = Field(description="HandSpec joint this channel drives (joints[].joint)")
     sign: Literal[-1, 1] = 1
-    offset: float = Field(0.0, description="rad, added after scaling")
+    offset: Radians = Field(0.0, description="rad, added after scaling")
     native: tuple[int, int] = Field(description="[min, max] in device units; commands are clipped to it")
 
     @model_validator(mode="after")
@@ -53,11 +61,11 @@ class Channel(Frozen):
 
 
 class DynamixelSettings(Frozen):
-    operating_mode: int = Field(5, description="11: 5 = current-based position control")
-    goal_current: int = Field(350, ge=0, description="102, mA-ish units (350 LEAP Lite, 550 Full)")
-    p_gain: int = 600
-    i_gain: int = 0
-    d_gain: int = 200
+    operating_mode: int = Field(5, ge=0, le=16, description="11: 5 = current-based position control")
+    goal_current: int = Field(350, ge=0, le=2047, description="102, mA-ish units (350 LEAP Lite, 550 Full)")
+    p_gain: int = Field(600, ge=0, le=16383)
+    i_gain: int = Field(0, ge=0, le=16383)
+    d_gain: int = Field(200, ge=0, le=16383)
     fast_sync_read: bool = Field(True, description="try fast-sync-read (0x8A) first, fall back to sync-read")
     model_numbers: list[int] = Field(default_factory=list, description="accepted ping model numbers; [] = any")
 
@@ -81,13 +89,25 @@ class HandConfig(Frozen):
     port: PortSettings
     slave_id: int | None = Field(None, ge=1, le=247, description="Modbus slave id")
     conversion: Literal["linear", "spec_limits", "device_limits"]
-    rad_per_unit: float | None = Field(None, gt=0, description="linear conversion only")
+    rad_per_unit: float | None = Field(None, ge=1e-7, le=0.1, description="linear conversion only (rad per device "
+                                       "unit: 2π/4096 for Dynamixel ticks)")
     closing: Literal["increasing", "decreasing"] = Field(description="native direction that closes (+FLEX)")
     channels: list[Channel] = Field(min_length=1)
-    start_pose: dict[str, float] = Field(default_factory=dict, description="joint → rad before the policy starts")
+    start_pose: dict[str, Radians] = Field(default_factory=dict, description="joint → rad before the policy starts")
     dynamixel: DynamixelSettings | None = None
     inspire: InspireSettings | None = None
     revo2: Revo2Settings | None = None
+
+    @field_validator("channels")
+    @classmethod
+    def _native_bounds(cls, channels: list[Channel], info: ValidationInfo) -> list[Channel]:
+        protocol = info.data.get("protocol")
+        lo, hi = NATIVE_BOUNDS.get(protocol, NATIVE_BOUNDS["dynamixel2"])
+        for i, c in enumerate(channels):
+            if not lo <= c.native[0] < c.native[1] <= hi:
+                raise ValueError(f"channels.{i} ('{c.name}'): native range {list(c.native)} must lie within "
+                                 f"[{lo}, {hi}] for protocol {protocol}")
+        return channels
 
     @model_validator(mode="after")
     def _consistent(self) -> "HandConfig":
