@@ -308,3 +308,115 @@ def test_lint_missing_spec_file(tmp_path: Path):
     assert any("no such" in ln and "no_such.yaml" in ln for ln in lines), _describe(r)
     assert list(tmp_path.iterdir()) == [], "lint created files"
     assert_nonzero_exit(r)
+
+
+# --------------------------------------------------------------------------------------------
+# Paths and reads: provenance.urdf and object names stay inside their root; only bounded regular files
+# --------------------------------------------------------------------------------------------
+
+def _provenance(reference: str):
+    def tamper(s: dict) -> dict:
+        s["provenance"]["urdf"] = reference
+        return s
+    return tamper
+
+
+def _make_root(tmp_path: Path) -> Path:
+    root = tmp_path / "assets"
+    (root / "hands" / "h").mkdir(parents=True)
+    (root / "objects" / "ycb45" / "ok").mkdir(parents=True)
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "outside" / "secret.urdf").write_text(GOOD.replace("two_finger", "SECRET_OUTSIDE"))
+    (tmp_path / "outside" / "model.xml").write_text("<mujoco/>")
+    return root
+
+
+PROVENANCE_CASES = [
+    pytest.param("../outside/secret.urdf", "leaves the asset root", id="dotdot-out-of-asset-root"),
+    pytest.param("hands/h/../../../outside/secret.urdf", "leaves the asset root", id="dotdot-inside-then-out"),
+    pytest.param("dgz://hands/../../../../../etc/passwd", "leaves the package", id="dgz-uri-dotdot"),
+    pytest.param("dgz://hands/../..", "leaves the package", id="dgz-uri-dotdot-folder"),
+    pytest.param("/dev/zero", "not a regular file", id="dev-zero"),
+    pytest.param("FIFO", "not a regular file", id="fifo"),
+    pytest.param("hands", "not a regular file", id="a-folder"),
+    pytest.param("hands/h/nope.urdf", "not found", id="missing-under-root"),
+]
+
+
+@pytest.mark.parametrize("reference, expect", PROVENANCE_CASES)
+def test_lint_refuses_bad_provenance_path(reference: str, expect: str, good_spec: dict, tmp_path: Path):
+    import copy
+
+    root = _make_root(tmp_path)
+    if reference == "FIFO":
+        reference = str(tmp_path / "fifo.urdf")
+        os.mkfifo(reference)
+    bad = _provenance(reference)(copy.deepcopy(good_spec))
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(bad, sort_keys=False))
+    # lint reports an unusable URDF as a warning ("URDF not checked"); it must name the refusal
+    r = dgz(tmp_path, "lint", "bad.yaml", "--asset-root", str(root))
+    assert_no_traceback(r)
+    assert r.seconds < 30, f"took {r.seconds:.1f}s (blocked on a FIFO or an endless read?)"
+    assert expect in r.text, _describe(r)
+    assert "SECRET_OUTSIDE" not in r.text
+    # a command that needs the URDF fails with one line
+    r = dgz(tmp_path, "scene", "--hand", "bad.yaml", "--object", "sphere", "-o", "scene.xml", "--asset-root", str(root))
+    assert_no_traceback(r)
+    assert r.seconds < 30, f"took {r.seconds:.1f}s (blocked on a FIFO or an endless read?)"
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and expect in lines[0], _describe(r)
+    assert "SECRET_OUTSIDE" not in r.text and not (tmp_path / "scene.xml").exists()
+    assert_nonzero_exit(r)
+
+
+@pytest.mark.parametrize("name", ["../../../outside", "../ycb45/../../../outside", "/tmp", "ok/../../../outside",
+                                  ".."])
+def test_scene_refuses_object_names_outside_the_asset_root(name: str, tmp_path: Path):
+    root = _make_root(tmp_path)
+    r = dgz(tmp_path, "scene", "--hand", "dgz_tri", "--object", name, "-o", "scene.xml", "--asset-root", str(root))
+    assert_no_traceback(r)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and "not a plain folder name" in lines[0], _describe(r)
+    assert not (tmp_path / "scene.xml").exists()
+    assert_nonzero_exit(r)
+
+
+def test_object_model_must_be_a_regular_file(tmp_path: Path):
+    from dgz_cli.sim.objects import resolve_objects
+    from dgz_cli.spec.errors import AssetError
+
+    root = _make_root(tmp_path)
+    (root / "objects" / "ycb45" / "dir" / "model.xml").mkdir(parents=True)
+    with pytest.raises(AssetError, match="not a regular file"):
+        resolve_objects("dir", str(root))
+    os.mkfifo(root / "objects" / "ycb45" / "ok" / "model.xml")
+    with pytest.raises(AssetError, match="not a regular file"):
+        resolve_objects("ok", str(root))
+
+
+@pytest.mark.parametrize("what", ["dev-zero", "fifo", "folder", "huge"])
+def test_onboard_and_lint_refuse_non_regular_or_huge_inputs(what: str, tmp_path: Path):
+    if what == "dev-zero":
+        target = "/dev/zero"
+    elif what == "fifo":
+        target = str(tmp_path / "hand.urdf")
+        os.mkfifo(target)
+    elif what == "folder":
+        target = str(tmp_path / "d.urdf")
+        os.mkdir(target)
+    else:
+        target = str(tmp_path / "big.urdf")
+        with open(target, "wb") as fh:  # sparse: 65 MB of nothing
+            fh.truncate(65 * 1024 * 1024)
+    r = dgz(tmp_path, "onboard", target, "-o", "out.yaml")
+    assert_no_traceback(r)
+    assert r.seconds < 30, f"took {r.seconds:.1f}s"
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and ("not a regular file" in lines[0] or "MB dgz reads" in lines[0]), _describe(r)
+    assert not (tmp_path / "out.yaml").exists()
+    assert_nonzero_exit(r)
+    r = dgz(tmp_path, "lint", target)  # the same file as a spec
+    assert_no_traceback(r)
+    assert r.seconds < 30, f"took {r.seconds:.1f}s"
+    assert any(ln.startswith("FAIL") for ln in r.stdout.splitlines()), _describe(r)
+    assert_nonzero_exit(r)

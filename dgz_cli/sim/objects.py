@@ -7,6 +7,7 @@ Every object is a free body whose frame sits at its collision geometry's centroi
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,15 +53,37 @@ def resolve_objects(spec: str, root_option: str | None = None) -> list[ObjectMod
         elif token in PRIMITIVES:
             out.append(ObjectModel(token, "primitive", None))
         else:
-            root = asset_root(root_option, required=True)
-            path = root / YCB_DIR / token / "model.xml"
-            if not path.is_file():
-                raise AssetError(f"unknown object '{token}' (no {path})",
-                                 f"use ycb45, primitives ({', '.join(PRIMITIVES)}) or a folder name under {root / YCB_DIR}")
-            out.append(ObjectModel(token, "ycb", path))
+            out.append(ObjectModel(token, "ycb", _ycb_model(token, root_option)))
     if not out:
         raise AssetError("no objects selected", "pass e.g. --objects ycb45 or --objects sphere,box")
     return out
+
+
+MAX_MODEL_BYTES = 64 * 1024 * 1024
+
+
+def _ycb_model(token: str, root_option: str | None) -> Path:
+    """``<asset root>/objects/ycb45/<token>/model.xml``: ``token`` is one folder name (no path, no ``..``)
+    and the model a regular file of bounded size."""
+    import stat
+
+    root = asset_root(root_option, required=True)
+    folder = root / YCB_DIR
+    known = f"use ycb45, primitives ({', '.join(PRIMITIVES)}) or a folder name under {folder}"
+    if (not token or token in (".", "..") or "/" in token or "\\" in token or "\x00" in token
+            or token != token.strip() or Path(token).is_absolute()):
+        raise AssetError(f"object name {token!r} is not a plain folder name", known)
+    path = folder / token / "model.xml"
+    try:
+        st = os.stat(path)
+    except OSError:
+        raise AssetError(f"unknown object '{token}' (no {path})", known) from None
+    if not stat.S_ISREG(st.st_mode):
+        raise AssetError(f"object '{token}': {path} is not a regular file", known)
+    if st.st_size > MAX_MODEL_BYTES:
+        raise AssetError(f"object '{token}': {path} is {st.st_size} bytes (more than {MAX_MODEL_BYTES >> 20} MB)",
+                         "is this really a MuJoCo model?")
+    return path
 
 
 def object_spec(obj: ObjectModel, visual: bool):

@@ -85,15 +85,47 @@ def urdf_reference(path: Path, root: Path | None) -> str:
 
 
 def resolve_urdf(reference: str, root_option: str | Path | None = None) -> Path:
-    """A spec's ``provenance.urdf`` → the file on this machine."""
+    """A spec's ``provenance.urdf`` → the file on this machine.
+
+    ``dgz://`` names stay inside the package data and relative names inside the asset root (no ``..``
+    escape); whatever is named must be a regular file (not a device, FIFO or folder).
+    """
+    if "\x00" in reference:
+        raise AssetError(f"provenance.urdf {reference!r} contains a NUL character", "fix provenance.urdf in the spec")
     if reference.startswith(BUILTIN_PREFIX):
-        return PACKAGE_DATA / reference[len(BUILTIN_PREFIX):]
+        full = _inside_root(PACKAGE_DATA, reference[len(BUILTIN_PREFIX):], reference, "the package's data folder")
+        return _regular(full, reference)
     p = Path(reference)
     if p.is_absolute():
-        return p
+        return _regular(p, reference)
     root = asset_root(root_option, required=True)
-    full = root / p
-    if not full.is_file():
+    full = _inside_root(root, reference, reference, f"the asset root {root}")
+    if not full.exists():
         raise AssetError(f"{reference} not found under the asset root {root}",
                          f"point --asset-root / {ASSET_ENV} at the folder that holds hands/ and objects/")
+    return _regular(full, reference)
+
+
+def _inside_root(root: Path, relative: str, reference: str, where: str) -> Path:
+    """``root / relative``, refusing absolute parts and ``..`` that would leave ``root``."""
+    rel = Path(relative)
+    full = Path(os.path.normpath(Path(root) / rel))
+    base = Path(os.path.normpath(root))
+    if rel.is_absolute() or not (full == base or base in full.parents):
+        raise AssetError(f"provenance.urdf '{reference}' leaves {where}",
+                         "a relative name must stay inside its root (no '..'); fix provenance.urdf in the spec")
     return full
+
+
+def _regular(path: Path, reference: str) -> Path:
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        raise AssetError(f"provenance.urdf '{reference}': no such file ({path})",
+                         f"check the path, or point --asset-root / {ASSET_ENV} at the asset folder") from None
+    if not stat.S_ISREG(mode):
+        raise AssetError(f"provenance.urdf '{reference}' is not a regular file ({path})",
+                         "name a URDF or xacro file, not a device, FIFO or folder")
+    return path

@@ -52,12 +52,41 @@ def parse_spec(data: object, where: str) -> HandSpec:
                         "fix that field or regenerate the spec with `dgz onboard`") from None
 
 
+MAX_YAML_BYTES = 64 * 1024 * 1024
+
+
+def read_text_bounded(path: Path, limit: int = MAX_YAML_BYTES, error=SpecError) -> str:
+    """A regular file's UTF-8 text; devices, FIFOs, folders and files over ``limit`` bytes are refused
+    (``error`` is the DgzError class raised, naming the file)."""
+    import stat
+
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except OSError:
+        raise error(f"{path}: no such file", "check the path (`dgz show --list` lists shipped hands)") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"{path}: not a regular file", "give the path of a file (not a device, FIFO or folder)")
+    if st.st_size > limit:
+        raise error(f"{path}: {st.st_size} bytes, more than the {limit >> 20} MB dgz reads", "is this the right file?")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise error(f"{path}: cannot be read ({exc.strerror})", "check the file's permissions") from None
+    if len(data) > limit:
+        raise error(f"{path}: more than the {limit >> 20} MB dgz reads", "is this the right file?")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise error(f"{path}: not a UTF-8 text file", "is this really a YAML file?") from None
+
+
 def read_yaml(path: Path) -> object:
     path = Path(path)
-    if not path.is_file():
-        raise SpecError(f"{path}: no such file", "check the path (`dgz show --list` lists shipped hands)")
+    text = read_text_bounded(path)
     try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
+        return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" (line {mark.line + 1})" if mark is not None else ""
