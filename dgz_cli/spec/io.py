@@ -10,7 +10,7 @@ from pathlib import Path
 import yaml
 from pydantic import ValidationError
 
-from dgz_cli.spec.errors import SpecError
+from dgz_cli.spec.errors import DgzError, SpecError
 from dgz_cli.spec.models import HandSpec, Overrides
 
 HEADER = "# HandSpec written by `dgz onboard` — edit overrides in an --overrides file, not here.\n"
@@ -115,13 +115,42 @@ def spec_to_yaml(spec: HandSpec) -> str:
     return HEADER + yaml.dump(data, Dumper=_Dumper, sort_keys=False, width=120, allow_unicode=True)
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
+def atomic_write_bytes(path: Path, data: bytes, *, inputs=()) -> None:
     """Write ``data`` to ``path`` via a temporary file in the same directory and a rename, so a reader
-    (or a crash) never sees a half-written file; the result gets the usual umask-derived mode."""
+    (or a crash) never sees a half-written file; the result gets the usual umask-derived mode.
+
+    A symlink is written through (its target is replaced, the link stays). A target that exists and is
+    not a regular file (a device such as /dev/full, a FIFO, a folder) is refused, and so is a target that
+    is one of ``inputs`` (``-o`` equal to the file being read). Any OSError (read-only mount, ENOSPC, a
+    name too long, a missing permission) becomes a one-line :class:`DgzError` naming the path; nothing
+    is left behind.
+    """
+    import stat
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    target = Path(os.path.realpath(path))  # through symlinks (a dangling one: its target)
     try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise DgzError(f"cannot write {path}: {exc.strerror}", "choose another output path") from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device, FIFO or socket)"
+        raise DgzError(f"cannot write {path}: it exists and is {kind}",
+                       "name a new or regular file as the output")
+    for src in inputs:
+        try:
+            same = st is not None and os.path.samefile(src, target)
+        except OSError:
+            same = False
+        if same:
+            raise DgzError(f"cannot write {path}: it is the input file {src}",
+                           "choose an output path different from the input")
+    tmp = None
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name[:200]}.", suffix=".tmp", dir=target.parent)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -129,16 +158,23 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
+        os.replace(tmp, target)
+        tmp = None
+    except OSError as exc:
+        raise DgzError(f"cannot write {path}: {exc.strerror or exc}",
+                       "check that the folder exists and is writable and that the disk has space") from None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
-        raise
 
 
-def atomic_write(path: Path, text: str) -> None:
-    atomic_write_bytes(path, text.encode("utf-8"))
+def atomic_write(path: Path, text: str, inputs=()) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"), inputs=inputs)
 
 
-def write_spec(spec: HandSpec, path: Path) -> None:
-    atomic_write(path, spec_to_yaml(spec))
+def write_spec(spec: HandSpec, path: Path, inputs=()) -> None:
+    """Write ``spec`` atomically; never over its own source URDF (when recorded as an absolute path) or
+    any of ``inputs``."""
+    src = spec.provenance.urdf
+    own = (src,) if os.path.isabs(src) else ()
+    atomic_write_bytes(path, spec_to_yaml(spec).encode("utf-8"), inputs=(*own, *inputs))

@@ -122,7 +122,8 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
     axes = fig.subplots(1, 2)
     fig.subplots_adjust(left=0.06, right=0.98, top=0.9, bottom=0.14, wspace=0.15)
     n_nodes, n_act = len(spec.nodes), len(spec.joints)
-    fig.suptitle(f"{spec.name}: {n_nodes} nodes, {n_act} actuated joints ({palm.side} hand)", fontsize=14)
+    fig.suptitle(f"{spec.name}: {n_nodes} nodes, {n_act} actuated joints ({palm.side} hand)", fontsize=14,
+                 parse_math=False)  # names come from an input file: never mathtext
 
     # extent from the hand itself (an arm in the URDF would otherwise shrink the hand to a dot)
     pts = [anchors[k] for k in anchors] + [p for a, b, inside in skeleton if inside for p in (a, b)]
@@ -264,7 +265,8 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
             ha = "left" if c[0] > 0.3 else "right" if c[0] < -0.3 else "center"
             va = "bottom" if c[1] > 0.3 else "top" if c[1] < -0.3 else "center"
             ax.annotate(text, (flip * p[0], p[1]), xytext=tuple(c * offset), textcoords="offset points",
-                        fontsize=LABEL_SIZE, color="#202020", ha=ha, va=va, zorder=3.5, linespacing=1.0)
+                        fontsize=LABEL_SIZE, color="#202020", ha=ha, va=va, zorder=3.5, linespacing=1.0,
+                        parse_math=False)
 
         ax.set_title(title, fontsize=11)
         ax.set_xlabel(xlabel)
