@@ -94,3 +94,33 @@ def test_onboard_output_to_a_non_regular_file_is_refused(target, tmp_path):
     lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
     assert len(lines) == 1 and "cannot write" in lines[0], _describe(r)
     assert out.is_fifo() if target == "fifo" else out.is_dir()
+
+
+def test_show_png_never_replaces_a_device_or_fifo(tmp_path):
+    """`dgz show --png` used its own temp-file + rename: /dev/full was replaced when run as root."""
+    import pytest as _pytest
+
+    from dgz_cli.spec.catalog import resolve_spec, resolve_urdf
+    from dgz_cli.spec.io import load_spec
+    from dgz_cli.viz import show
+
+    fifo = tmp_path / "pic.png"
+    os.mkfifo(fifo)
+    spec = load_spec(resolve_spec("dgz_tri"))
+    import inspect
+
+    params = list(inspect.signature(show.render_png).parameters)
+    if params[:2] == ["spec", "urdf_path"]:
+        call = lambda out: show.render_png(spec, resolve_urdf(spec.provenance.urdf), out)  # noqa: E731
+    else:  # (spec, kin, poser, out): the caller composes the kinematics
+        from dgz_cli.onboard.compile import Poser, compile_model
+        from dgz_cli.onboard.urdf import load_kinematics
+
+        kin = load_kinematics(resolve_urdf(spec.provenance.urdf), spec.provenance.xacro_args)
+        poser = Poser(kin, compile_model(kin))
+        call = lambda out: show.render_png(spec, kin, poser, out)  # noqa: E731
+    with _pytest.raises(DgzError, match="not a regular file"):
+        call(fifo)
+    assert fifo.is_fifo() and _leftovers(tmp_path) == []
+    call(tmp_path / "ok.png")
+    assert (tmp_path / "ok.png").read_bytes()[:4] == b"\x89PNG"

@@ -7,8 +7,6 @@ f up). matplotlib and MuJoCo are imported inside the functions so importing this
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -284,17 +282,14 @@ def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
                 Line2D([], [], ls="none", marker="$\\otimes$", ms=9, color="#555555", label="axis away from viewer")]
     fig.legend(handles=handles, loc="lower center", ncol=8, fontsize=8, frameon=False)
 
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp.png", dir=out.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", dpi=110)
-        os.replace(tmp, out)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    import io
+
+    from dgz_cli.spec.io import atomic_write_bytes
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    # never replaces a device/FIFO/folder, writes through symlinks, OSError → one line (docs/security.md)
+    atomic_write_bytes(Path(out), buf.getvalue())
 
 
 _LABEL_DIRS = [np.array(d, dtype=float) / np.linalg.norm(d)
