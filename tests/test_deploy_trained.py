@@ -19,7 +19,6 @@ from dgz_cli.cli import deploy_cmd
 from dgz_cli.runtime.policy import load_policy
 from dgz_cli.runtime.steplog import read_log
 from dgz_cli.rl.checkpoint import resolve_checkpoint
-from dgz_cli.runtime.trained import TrainedPolicy
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import load_spec
@@ -27,7 +26,6 @@ from dgz_cli.spec.io import load_spec
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 SHIPPED = "dgz-cpu-first"
 TRI = load_spec(resolve_spec("dgz_tri"))
-RATE = 50.0
 
 
 def console() -> Console:
@@ -64,8 +62,7 @@ def test_names_resolve_like_eval(tmp_path):
     assert "policies/" in info.value.hint
 
 
-def test_checkpoint_without_the_key_is_refused_as_privileged():
-    assert "privileged_inputs" not in yaml.safe_load((REPO / "policies" / SHIPPED / "checkpoint.yaml").read_text())
+def test_a_teacher_checkpoint_is_refused_as_privileged():
     with pytest.raises(DgzError) as info:
         load_policy(SHIPPED, TRI)
     msg = info.value.message
@@ -73,20 +70,20 @@ def test_checkpoint_without_the_key_is_refused_as_privileged():
     assert "student policy" in info.value.hint and "--allow-privileged" in info.value.hint
 
 
-def test_declared_inputs_decide(tmp_path):
-    student = load_policy(str(checkpoint_copy(tmp_path / "s", privileged_inputs=[])), TRI)
-    assert isinstance(student, TrainedPolicy) and student.privileged_inputs == frozenset()
-    with pytest.raises(DgzError, match=r"needs privileged inputs \(force\)"):
-        load_policy(str(checkpoint_copy(tmp_path / "f", privileged_inputs=["force"])), TRI)
-    with pytest.raises(DgzError, match="field 'privileged_inputs' must be a list"):
-        load_policy(str(checkpoint_copy(tmp_path / "b", privileged_inputs="contact")), TRI)
+def test_unknown_or_inconsistent_manifest_fields_are_refused_not_dropped(tmp_path):
+    with pytest.raises(DgzError, match="field 'privileged_inputs': \\[\\] disagrees with the observation layout"):
+        load_policy(str(checkpoint_copy(tmp_path / "s", privileged_inputs=[])), TRI)
+    with pytest.raises(DgzError, match="unknown field\\(s\\) \\['bogus'\\]"):
+        load_policy(str(checkpoint_copy(tmp_path / "u", bogus=1)), TRI)
+    with pytest.raises(DgzError, match="field 'iteration'"):
+        load_policy(str(checkpoint_copy(tmp_path / "i", iteration=-3)), TRI)
 
 
 def test_trained_policy_acts_on_the_hardware_observation(points):
     policy = load_policy(SHIPPED, TRI, allow_privileged=True)
     builder = policy.observation_builder
     builder.reset(TRI, {"object_points": deploy_cmd.load_points(points), "rate_hz": 20.0})
-    from dgz_cli.runtime.policy import StepInput
+    from dgz_cli.runtime.types import StepInput
 
     q = builder.kin.rest
     obs = builder.build(StepInput(0, None, q, np.zeros(policy.action_dim), np.zeros(6)))
@@ -97,17 +94,17 @@ def test_trained_policy_acts_on_the_hardware_observation(points):
 
 def test_deploy_refuses_without_the_flag(points):
     with pytest.raises(DgzError, match="needs privileged inputs"):
-        deploy_cmd.run("sim", None, SHIPPED, points, False, False, True, None, "hold", None, console())
+        deploy_cmd.run("dgz_tri", "sim", SHIPPED, points, False, False, True, None, "hold", None, console())
     with pytest.raises(DgzError, match="needs the object: no --object-points"):
-        deploy_cmd.run("sim", None, SHIPPED, None, False, False, True, None, "hold", None, console(),
+        deploy_cmd.run("dgz_tri", "sim", SHIPPED, None, False, False, True, None, "hold", None, console(),
                        allow_privileged=True)
 
 
 def test_cli_refusal_is_one_line_and_exit_1(points, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    p = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "deploy", "--hand", "sim", "--policy", SHIPPED,
-                        "--object-points", str(points)], cwd=tmp_path, env=env, capture_output=True, text=True,
-                       timeout=120)
+    p = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "deploy", "--hand", "dgz_tri", "--port", "sim",
+                        "--policy", SHIPPED, "--object-points", str(points)], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=120)
     assert p.returncode == 1, p.stderr
     lines = [line for line in p.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "Traceback" not in p.stderr
@@ -121,7 +118,8 @@ def check_run(log: Path, out: Console) -> list[dict]:
     assert end["ok"], end
     assert header["policy"] == SHIPPED and header["privileged_zeroed"] == ["contact", "force"]
     grasp = [s for s in steps if s["phase"] == "grasp"]
-    assert len(grasp) == 130 and len([s for s in steps if s["phase"] == "lift"]) == 30
+    assert header["contract"]["episode"]["grasp_steps"] == len(grasp) == 120  # the checkpoint's own protocol
+    assert len([s for s in steps if s["phase"] == "lift"]) == 30 and len([s for s in steps if s["phase"] == "hold"]) == 40
     acts = np.array([s["action"] for s in grasp])
     assert np.ptp(acts, axis=0).max() > 0  # the network acts (raw normalized outputs are logged)
     assert grasp[-1]["target"] != grasp[0]["target"]
@@ -130,7 +128,7 @@ def check_run(log: Path, out: Console) -> list[dict]:
 
 def test_full_sim_run_with_the_flag(points, tmp_path):
     log, out = tmp_path / "sim.jsonl", console()
-    code = deploy_cmd.run("sim", None, SHIPPED, points, False, False, True, log, "hold", None, out, rate_hz=RATE,
+    code = deploy_cmd.run("dgz_tri", "sim", SHIPPED, points, False, False, True, log, "hold", None, out,
                           allow_privileged=True, arm="sim")
     assert code == 0, out.export_text()
     steps = check_run(log, out)
@@ -141,7 +139,7 @@ def test_full_sim_run_with_the_flag(points, tmp_path):
 @needs_assets()
 def test_full_fake_revo2_run_with_the_flag(points, tmp_path):
     log, out = tmp_path / "revo2.jsonl", console()
-    code = deploy_cmd.run("revo2", None, SHIPPED, points, False, True, True, log, "hold", None, out, rate_hz=RATE,
+    code = deploy_cmd.run("revo2", None, SHIPPED, points, False, True, True, log, "hold", None, out,
                           allow_privileged=True, asset_root=str(asset_root()))
     assert code == 0, out.export_text()
     steps = check_run(log, out)
@@ -149,26 +147,18 @@ def test_full_fake_revo2_run_with_the_flag(points, tmp_path):
     assert np.max(np.abs(np.array(last["target"]) - np.array(last["measured"]))) < 0.05  # the fake tracked
 
 
-def _app_has(flag: str) -> bool:
-    import inspect
-
-    from dgz_cli.cli import app
-
-    return flag in inspect.getsource(app.deploy)
-
-
-@pytest.mark.skipif(not _app_has("--allow-privileged"),
-                    reason="dgz_cli/cli/app.py does not expose --allow-privileged/--arm yet (patch pending)")
 def test_cli_flags_run_the_checkpoint(points, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     log = tmp_path / "cli.jsonl"
-    p = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "deploy", "--hand", "sim", "--policy", SHIPPED,
-                        "--object-points", str(points), "--allow-privileged", "--arm", "sim", "--log", str(log)],
+    p = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "deploy", "--hand", "dgz_tri", "--port", "sim",
+                        "--policy", SHIPPED, "--object-points", str(points), "--allow-privileged", "--arm", "sim",
+                        "--log", str(log)],
                        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=180)
     assert p.returncode == 0, p.stdout + p.stderr
     assert "fed as zeros" in p.stdout and read_log(log)[2]["ok"]
     (tmp_path / "piper_sdk.py").write_text("raise ImportError('not installed here')\n")  # as if absent
-    p = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "deploy", "--hand", "sim", "--arm", "piper"],
+    p = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "deploy", "--hand", "dgz_tri", "--port", "sim",
+                        "--policy", "close", "--arm", "piper"],
                        cwd=tmp_path, env={**env, "PYTHONPATH": f"{tmp_path}:{REPO}"}, capture_output=True, text=True,
                        timeout=120)
     assert p.returncode == 1 and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1

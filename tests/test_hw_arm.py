@@ -16,6 +16,7 @@ from dgz_cli.hw.arm import ArmLimits, WristTracker, euler_to_matrix, matrix_to_e
 from dgz_cli.hw.arm_config import load_arm_config
 from dgz_cli.hw.errors import ConfigError
 from dgz_cli.hw.piper import ArmError, PiperArm
+from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
 from dgz_cli.spec.errors import DgzError
 
 CFG = load_arm_config("piper")
@@ -157,7 +158,7 @@ def test_missing_sdk_is_one_line(monkeypatch):
         PiperArm(CFG, np.eye(3), np.zeros(3)).connect()
     assert "pip install piper_sdk" in info.value.hint
     with pytest.raises(DgzError, match="not installed"):
-        deploy_cmd.run("sim", None, "scripted", None, False, False, True, None, "hold", None, Console(), arm="piper")
+        deploy_cmd.run("dgz_tri", "sim", "close", None, False, False, True, None, "hold", None, Console(), arm="piper")
 
 
 def test_arm_files_are_validated(tmp_path):
@@ -169,15 +170,17 @@ def test_arm_files_are_validated(tmp_path):
     with pytest.raises(ConfigError, match="unknown key 'speed'"):
         load_arm_config(str(bad))
     with pytest.raises(DgzError, match="--arm 'kinova' is not supported"):
-        deploy_cmd.run("sim", None, "scripted", None, False, False, True, None, "hold", None, Console(), arm="kinova")
+        deploy_cmd.run("dgz_tri", "sim", "close", None, False, False, True, None, "hold", None, Console(), arm="kinova")
 
 
 def test_deploy_drives_the_piper_through_the_loop(monkeypatch, tmp_path):
     FakePiperSdk.instances.clear()
     monkeypatch.setitem(sys.modules, "piper_sdk", types.SimpleNamespace(C_PiperInterface=FakePiperSdk))
     out = Console(width=200, record=True)
-    code = deploy_cmd.run("sim", None, "scripted", None, False, False, True, tmp_path / "a.jsonl", "hold", None, out,
-                          rate_hz=100.0, grasp_steps=10, lift_steps=20, arm="piper")
+    contract = ControlContract(episode=EpisodeProtocol(control_hz=100.0, grasp_steps=10, lift_steps=20, hold_s=0.0,
+                                                       lift_height=0.2))
+    code = deploy_cmd.run("dgz_tri", "sim", "close", None, False, False, True, tmp_path / "a.jsonl", "hold", None, out,
+                          arm="piper", contract=contract)
     assert code == 0, out.export_text()
     sdk, = FakePiperSdk.instances
     names = sdk.names()
@@ -193,7 +196,7 @@ def test_deploy_drives_the_piper_through_the_loop(monkeypatch, tmp_path):
 def test_arm_fault_stops_the_loop_safely(monkeypatch):
     from dgz_cli.hw.factory import make_sim_driver
     from dgz_cli.runtime.loop import RunConfig, Runner
-    from dgz_cli.runtime.policy import ScriptedClosePolicy
+    from dgz_cli.runtime.policy import ClosePolicy
 
     arm, sdk = piper()
     real = sdk.__getattr__("EndPoseCtrl")
@@ -206,6 +209,7 @@ def test_arm_fault_stops_the_loop_safely(monkeypatch):
         return real(*args)
     monkeypatch.setattr(sdk, "EndPoseCtrl", flaky, raising=False)
     with make_sim_driver("dgz_tri") as hand:
-        res = Runner(hand, hand.spec, ScriptedClosePolicy(hand.spec), RunConfig(rate_hz=100.0), arm=arm).run()
+        contract = ControlContract(episode=EpisodeProtocol(control_hz=100.0))
+        res = Runner(hand, hand.spec, ClosePolicy(hand.spec, contract), RunConfig(contract=contract), arm=arm).run()
     assert not res.ok and res.exit_code == 1 and "EndPoseCtrl failed" in res.reason and res.steps == 4
     assert res.exit_action == "hold" and res.arm_exit.startswith("failed")

@@ -8,9 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from dgz_cli.policy import (MAGCN, PRESETS, MagcnConfig, flops_per_graph, get_preset, normalized_adjacency,
-                            parameter_count, to_tensors)
-from dgz_cli.policy.graph import COL_WRIST
+from dgz_cli.policy.graph import normalized_adjacency, to_tensors
+from dgz_cli.policy.magcn import MAGCN, flops_per_graph, parameter_count
+from dgz_cli.policy.presets import PRESETS, MagcnConfig, get_preset
+from dgz_cli.spec.contract import ControlContract
+from dgz_cli.spec.models import NODE_TYPES
+
+COL_WRIST = ControlContract().observation.node_col("node_type").start + NODE_TYPES.index("wrist")
 
 SMALL = MagcnConfig(gcn_widths=(16, 24, 24), global_hidden=32, head_hidden=16, value_hidden=16, phys_out=8)
 # wrist → 2 fingers of 3 nodes, and a thumb of 2
@@ -77,10 +81,10 @@ def test_forward_shapes_and_padded_action_dims_are_zero():
     mean, log_std, value = m(obs)
     assert mean.shape == log_std.shape == (1, 6 + 36) and value.shape == (1,)
     assert torch.equal(mean[0, 6 + 27:], torch.zeros(9))
-    action, lp, v = m.act(obs)
-    assert torch.equal(action[0, 6 + 27:], torch.zeros(9)) and lp.shape == (1,)
-    det, _, _ = m.act(obs, deterministic=True)
-    torch.testing.assert_close(det, mean)
+    out = m.sample(obs)
+    assert torch.equal(out["action"][0, 6 + 27:], torch.zeros(9)) and out["log_prob"].shape == (1,)
+    assert not torch.equal(out["action"], mean)
+    torch.testing.assert_close(m.act(obs), mean)
 
 
 @pytest.mark.parametrize("cfg", [SMALL, SMALL.model_copy(update=dict(early_fusion=True)),
@@ -146,7 +150,7 @@ def test_wrist_embedding_uses_the_wrist_node_or_falls_back_to_the_mean():
 
 
 def test_ablation_flags_change_parameter_shapes():
-    d, p = SMALL.node_dim, SMALL.phys_out
+    d, p = ControlContract().observation.node_dim, SMALL.phys_out
     full = model(SMALL)
     assert [l.in_features for l in full.gcn] == [d + p, 16 + p, 24 + p]
     early = model(SMALL.model_copy(update=dict(early_fusion=True)))

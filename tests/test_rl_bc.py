@@ -6,15 +6,16 @@ import numpy as np
 import pytest
 import torch
 
-from dgz_cli.policy.graph import action_valid
+from dgz_cli.cli.train_cmd import build
 from dgz_cli.policy.magcn import MAGCN
 from dgz_cli.policy.presets import get_preset
 from dgz_cli.rl import bc
 from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
-from dgz_cli.rl.runner import Trainer, load_policy
+from dgz_cli.rl.checkpoint import read_meta
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.sim.scripted import ScriptedGrasp
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.io import load_spec
 
@@ -32,7 +33,7 @@ def test_discounted_returns_by_hand():
 def demos():
     spec = load_spec(resolve_spec("dgz_tri"))
     env = GraspEnv([(spec, o) for o in resolve_objects("sphere,box")], threads=1)
-    d = bc.collect(env, 1, ReturnNormalizer(env.B, 0.996), 0.996, seed=3)
+    d = bc.collect(env, ScriptedGrasp(env.N, env.grasp_offset), 1, ReturnNormalizer(env.B, 0.996), 0.996, seed=3)
     env.close()
     return d
 
@@ -50,11 +51,9 @@ def test_collect_shapes_and_whole_episodes(demos):
 class _Frozen(torch.nn.Module):
     """A student that never moves: (B, A) zero means."""
 
-    cfg = get_preset("compact")
-
-    def forward(self, obs):
+    def act(self, obs):
         b, n = obs["node_valid"].shape
-        return torch.zeros(b, 6 + 3 * n), torch.zeros(b, 6 + 3 * n), torch.zeros(b)
+        return torch.zeros(b, 6 + 3 * n)
 
 
 def _first_closing_step(d: bc.Demonstrations) -> int:
@@ -64,7 +63,8 @@ def _first_closing_step(d: bc.Demonstrations) -> int:
 def test_dagger_executes_the_student_and_labels_with_the_teacher(demos):
     spec = load_spec(resolve_spec("dgz_tri"))
     env = GraspEnv([(spec, o) for o in resolve_objects("sphere,box")], threads=1)
-    d = bc.collect(env, 1, ReturnNormalizer(env.B, 0.996), 0.996, seed=3, student=_Frozen())
+    d = bc.collect(env, ScriptedGrasp(env.N, env.grasp_offset), 1, ReturnNormalizer(env.B, 0.996), 0.996, seed=3,
+                   student=_Frozen())
     env.close()
     # the teacher labels "approach" first in both; a hand that does not move stalls at once and the
     # teacher switches to closing after 3 steps, while when it acts itself it approaches for longer
@@ -81,7 +81,7 @@ def test_pretrain_makes_the_policy_imitate_the_teacher(demos):
     T, B = demos.actions.shape[:2]
     t, b = torch.arange(T).repeat_interleave(B), torch.arange(B).repeat(T)
     obs = demos.obs(t, b)
-    av = action_valid(obs["node_valid"]).float()
+    av = model.action_valid(obs).float()
 
     def error() -> float:
         with torch.no_grad():
@@ -100,12 +100,12 @@ def test_training_with_warm_start_records_it(tmp_path):
     cfg = TrainConfig(hands=("dgz_tri",), objects="sphere", repeat=1, steps_per_env=20, iterations=1, seed=0,
                       bc_episodes=1, bc_epochs=2, bc_dagger_rounds=1)
     seen = []
-    Trainer(cfg, tmp_path, None, on_warm_start=seen.append).train()
-    _, meta = load_policy(tmp_path)
-    assert meta["train"]["bc_episodes"] == 1 and meta["warm_start"]["teacher"] == "scripted"
-    assert meta["warm_start"]["episodes"] == 2 and seen == [meta["warm_start"]]
-    assert len(meta["warm_start"]["clone_success_rates"]) == 1
-    assert meta["privileged_inputs"] == ["contact", "force"]
+    build(cfg, tmp_path, None, on_warm_start=seen.append).train()
+    meta = read_meta(tmp_path)
+    assert meta.train.bc_episodes == 1 and meta.warm_start["teacher"] == "scripted"
+    assert meta.warm_start["episodes"] == 2 and seen == [meta.warm_start]
+    assert len(meta.warm_start["clone_success_rates"]) == 1
+    assert meta.privileged_inputs == ("contact", "force")
 
 
 def test_git_revision_marks_a_dirty_tree(tmp_path):

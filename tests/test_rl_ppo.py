@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 import torch
 
-from dgz_cli.policy import MAGCN, MagcnConfig, to_tensors
-from dgz_cli.rl import PPO, AdaptiveKLSchedule, PPOConfig, RolloutStorage
+from dgz_cli.policy.graph import to_tensors
+from dgz_cli.policy.magcn import MAGCN
+from dgz_cli.policy.presets import MagcnConfig
+from dgz_cli.rl.config import PPOConfig
+from dgz_cli.rl.ppo import PPO
+from dgz_cli.rl.schedule import AdaptiveKLSchedule
+from dgz_cli.rl.storage import RolloutStorage
 
 TINY = MagcnConfig(gcn_widths=(16, 16), global_hidden=16, head_hidden=16, value_hidden=16, phys_out=8)
 

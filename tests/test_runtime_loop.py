@@ -17,12 +17,21 @@ from dgz_cli.hw.fakes import fake_for
 from dgz_cli.runtime import bench
 from dgz_cli.runtime.loop import RunConfig, Runner
 from dgz_cli.runtime.mapping import start_pose
-from dgz_cli.runtime.policy import ScriptedClosePolicy
+from dgz_cli.runtime.policy import ClosePolicy
 from dgz_cli.runtime.rate import InterruptGuard
 from dgz_cli.runtime.steplog import StepLogger, read_log, replay
+from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
 from dgz_cli.spec.errors import DgzError
 
 RATE = 100.0  # tests run the real loop faster than the 20 Hz default
+
+
+def fast(grasp: int = 120, lift: int = 30, hold_s: float = 0.4) -> ControlContract:
+    """The default contract's scales at RATE Hz (physics 400 Hz) with the given phases."""
+    return ControlContract(episode=EpisodeProtocol(control_hz=RATE, grasp_steps=grasp, lift_steps=lift, hold_s=hold_s))
+
+
+FAST = fast()
 
 
 def console() -> Console:
@@ -33,43 +42,57 @@ def console() -> Console:
 def test_fake_deploy_tracks_targets(tmp_path, hand):
     log = tmp_path / f"{hand}.jsonl"
     out = console()
-    code = deploy_cmd.run(hand, None, "scripted", None, False, True, True, log, "hold", None, out, rate_hz=RATE)
+    code = deploy_cmd.run(hand, None, "close", None, False, True, True, log, "hold", None, out, contract=FAST)
     assert code == 0, out.export_text()
     header, steps, end = read_log(log)
     assert header["hand"] == hand and header["fake"] and header["arm"] == "none"
-    grasp = [s for s in steps if s["phase"] == "grasp"]
-    lift = [s for s in steps if s["phase"] == "lift"]
-    assert len(grasp) == 130 and len(lift) == 30 and end["ok"] and end["exit_action"] == "hold"
-    assert all(s["wrist_cmd"][2] == pytest.approx(0.01) for s in lift)  # scripted lift, logged only
+    assert header["contract"]["episode"]["control_hz"] == RATE
+    phases = {p: [s for s in steps if s["phase"] == p] for p in ("grasp", "lift", "hold")}
+    assert [len(v) for v in phases.values()] == [120, 30, 40] and end["ok"] and end["exit_action"] == "hold"
+    assert all(s["lift"] == pytest.approx(0.5 / 30, abs=1e-6) for s in phases["lift"])  # the protocol's lift, logged only
+    assert all(s["lift"] == 0 for s in phases["grasp"] + phases["hold"])
+    grasp = phases["grasp"]
     assert grasp[-1]["target"] != grasp[0]["target"]  # the hand closed
     last = steps[-1]
     assert np.max(np.abs(np.array(last["target"]) - np.array(last["measured"]))) < 0.02
-    assert {"action", "target", "measured", "effort", "loop_ms", "bus_errors", "wrist_filtered"} <= set(last)
+    assert {"action", "target", "measured", "effort", "loop_ms", "bus_errors", "wrist_sent"} <= set(last)
+
+
+def test_fake_deploy_scripted_grasp_needs_and_uses_the_object(tmp_path):
+    with pytest.raises(DgzError, match="needs the object"):
+        deploy_cmd.run("revo2", None, "scripted", None, False, True, True, None, "hold", None, console(), contract=FAST)
+    log = tmp_path / "s.jsonl"
+    assert deploy_cmd.run("revo2", None, "scripted", "sphere", False, True, True, log, "hold", None, console(),
+                          contract=FAST) == 0
+    steps = read_log(log)[1]
+    grasp = [s for s in steps if s["phase"] == "grasp"]
+    assert grasp[0]["action"][2] == 1.0  # approach along the palm normal first
+    assert max(grasp[-1]["action"][6:]) == 1.0  # then close (the palm never moves: --arm none, so it stalls)
 
 
 def test_sim_deploy_and_replay(tmp_path):
     log = tmp_path / "sim.jsonl"
-    assert deploy_cmd.run("sim", None, "scripted", None, False, False, False, log, "relax", None, console(),
-                          rate_hz=RATE) == 0  # the sim needs no confirmation
+    assert deploy_cmd.run("sim", None, "scripted", None, False, False, False, log, "relax", None,
+                          console()) == 0  # the sim needs no confirmation
     summary = replay(log)
-    assert summary["spec"] == "dgz_tri" and summary["steps"] == 161
+    assert summary["spec"] == "dgz_tri" and summary["steps"] == 190
     assert summary["final_tracking_error"] < 0.03
     out = console()
     assert deploy_cmd.run("sim", None, "scripted", None, False, False, False, None, "hold", log, out) == 0
-    assert "replayed 161 steps" in out.export_text()
+    assert "replayed 190 steps" in out.export_text()
 
 
 def test_dry_run_never_writes(tmp_path):
     cfg, spec = load_hand("revo2")
     with fake_for(cfg) as fake, make_driver(cfg, spec, fake.port) as driver:
-        res = Runner(driver, spec, ScriptedClosePolicy(spec), RunConfig(rate_hz=RATE, grasp_steps=10, lift_steps=2,
-                                                                        dry_run=True)).run(start_pose(spec))
+        res = Runner(driver, spec, ClosePolicy(spec), RunConfig(contract=fast(10, 2, 0.0), dry_run=True)).run(
+            start_pose(spec))
         assert res.ok and res.exit_action == "none" and fake.writes == []
 
 
 def test_refuses_to_move_without_tty_or_yes():
     with pytest.raises(DgzError, match="standard input is not a terminal") as info:
-        deploy_cmd.run("inspire", None, "scripted", None, False, True, False, None, "hold", None, console())
+        deploy_cmd.run("inspire", None, "close", None, False, True, False, None, "hold", None, console())
     assert "--yes" in info.value.hint
 
 
@@ -83,18 +106,23 @@ def test_cli_argument_errors(tmp_path):
     bad = tmp_path / "pts.txt"
     bad.write_text("1 2\n")
     with pytest.raises(DgzError, match="expected K×3"):
-        deploy_cmd.run("sim", None, "scripted", bad, False, False, True, None, "hold", None, console())
+        deploy_cmd.run("revo2", None, "scripted", bad, False, True, True, None, "hold", None, console())
     good = tmp_path / "pts.npy"
     np.save(good, np.array([[0.0, 0.0, 0.1], [0.02, 0.0, 0.1]]))
-    assert deploy_cmd.run("sim", None, "scripted", good, True, False, True, None, "hold", None, console(),
-                          rate_hz=RATE, grasp_steps=3, lift_steps=0) == 0
+    assert deploy_cmd.run("revo2", None, "scripted", good, True, True, True, None, "hold", None, console(),
+                          contract=fast(3, 0, 0.0)) == 0
+    with pytest.raises(DgzError, match="--sim-hand picks the hand"):
+        deploy_cmd.run("revo2", None, "close", None, False, True, True, None, "hold", None, console(), sim_hand="leap")
+    with pytest.raises(DgzError, match="--sim-object 'ycb45' names 45 objects"):
+        deploy_cmd.run("sim", None, "close", None, False, False, True, None, "hold", None, console(),
+                       sim_object="ycb45", asset_root=os.environ.get("DGZ_ASSET_ROOT"))
 
 
-class Injector(ScriptedClosePolicy):
-    """The scripted policy, plus an action at step ``at`` (set a fault, slow down, emit NaN, Ctrl-C ...)."""
+class Injector(ClosePolicy):
+    """The blind-close policy, plus an action at step ``at`` (set a fault, slow down, emit NaN, Ctrl-C ...)."""
 
     def __init__(self, spec, at, what) -> None:
-        super().__init__(spec)
+        super().__init__(spec, FAST)
         self.at, self.what = at, what
 
     def act(self, obs):
@@ -109,7 +137,7 @@ def run_with(hand, what, at=5, on_exit="hold", **fake_kw):
     with fake_for(cfg, **fake_kw) as fake, make_driver(cfg, spec, fake.port) as driver:
         policy = Injector(spec, at, lambda a: what(fake, a))
         with InterruptGuard() as guard:
-            res = Runner(driver, spec, policy, RunConfig(rate_hz=RATE, on_exit=on_exit), guard=guard).run()
+            res = Runner(driver, spec, policy, RunConfig(contract=FAST, on_exit=on_exit), guard=guard).run()
         return res, fake
 
 
@@ -199,8 +227,7 @@ def test_step_log_is_jsonl(tmp_path):
     with fake_for(cfg) as fake, make_driver(cfg, spec, fake.port) as driver:
         log = StepLogger(path)
         log.header(spec="inspire", joints=driver.joint_names, rate_hz=RATE)
-        Runner(driver, spec, ScriptedClosePolicy(spec), RunConfig(rate_hz=RATE, grasp_steps=4, lift_steps=1),
-               logger=log).run(start_pose(spec))
+        Runner(driver, spec, ClosePolicy(spec), RunConfig(contract=fast(4, 1, 0.0)), logger=log).run(start_pose(spec))
         log.close()
     lines = [json.loads(line) for line in path.read_text().splitlines()]
     assert [r["type"] for r in lines] == ["header"] + ["step"] * 6 + ["end"]  # 1 ramp + 4 grasp + 1 lift
@@ -215,9 +242,7 @@ def test_bench_returns_json():
 
 
 class Normalized:
-    """A network-style policy: outputs in [-1, 1], scaled by the runtime (0.01 wrist, 0.015 fingers)."""
-
-    normalized_actions = True
+    """A network-style policy: outputs in [-1, 1], scaled by the contract (0.01 wrist, 0.015 fingers)."""
 
     def __init__(self, spec) -> None:
         self.n = 6 + 3 * len(spec.nodes)
@@ -235,7 +260,7 @@ def test_normalized_policy_on_sim(tmp_path):
     log = StepLogger(tmp_path / "n.jsonl")
     log.header(spec="dgz_tri", joints=hand.joint_names, rate_hz=RATE)
     with hand:
-        res = Runner(hand, spec, Normalized(spec), RunConfig(rate_hz=RATE, grasp_steps=2, lift_steps=0), logger=log,
+        res = Runner(hand, spec, Normalized(spec), RunConfig(contract=fast(2, 0, 0.0)), logger=log,
                      context={"object_points": np.array([[0.0, 0.05, 0.1], [0.0, 0.07, 0.1]])}).run()
     log.close()
     assert res.ok, res.reason
@@ -255,7 +280,7 @@ def test_policy_brings_its_observation_builder():
             self.n += 1
             return {"custom": step.k}
 
-    class WithBuilder(ScriptedClosePolicy):
+    class WithBuilder(ClosePolicy):
         observation_builder = Builder()
 
         def act(self, obs):
@@ -266,5 +291,5 @@ def test_policy_brings_its_observation_builder():
 
     with make_sim_driver("dgz_tri") as hand:
         policy = WithBuilder(hand.spec)
-        res = Runner(hand, hand.spec, policy, RunConfig(rate_hz=RATE, grasp_steps=3, lift_steps=0)).run()
+        res = Runner(hand, hand.spec, policy, RunConfig(contract=fast(3, 0, 0.0))).run()
     assert res.ok and policy.observation_builder.n == 3

@@ -10,8 +10,8 @@ from dgz_cli.hw.arm import SimArm
 from dgz_cli.hw.sim_hand import SimHand
 from dgz_cli.runtime.kinematics import HandKinematics
 from dgz_cli.runtime.observation import MAX_POINTS, HardwareObservation, load_object_points
-from dgz_cli.runtime.policy import StepInput
-from dgz_cli.sim.config import EnvConfig
+from dgz_cli.runtime.types import StepInput
+from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.sim.scene import HAND_PREFIX
@@ -70,7 +70,7 @@ def test_node_features_agree_with_the_training_env():
         hand.data.ctrl[hand.acts] = q
         state = hand.read_state()
     assert np.max(np.abs(state.q - q)) < 2e-3
-    builder = HardwareObservation(TRI, CFG.distance_clip, CFG.force_scale)
+    builder = HardwareObservation(TRI, CFG.contract)
     builder.reset(TRI, {"object_points": cloud_palm, "rate_hz": 20.0})
     x = builder.build(StepInput(0, state, q, np.zeros(6 + 3 * n), np.zeros(6)))
     env_nodes, hw_nodes = obs["nodes"][0, :n], x["nodes"][0]
@@ -88,7 +88,7 @@ def test_node_features_agree_with_the_training_env():
 def test_joint_velocity_from_finite_differences():
     from dgz_cli.hw.driver import HandState
 
-    builder = HardwareObservation(TRI, CFG.distance_clip, CFG.force_scale)
+    builder = HardwareObservation(TRI, CFG.contract)
     builder.reset(TRI, {"object_points": np.array([[0.0, 0.0, 0.1]]), "rate_hz": 20.0})
     q0 = HandKinematics.for_spec(TRI).rest.copy()
     k = [r.joint for r in TRI.joints].index("index_mcp")
@@ -107,7 +107,7 @@ def test_wrist_velocity_from_the_commanded_palm_motion():
     kin.pose(kin.rest)
     arm = SimArm(*kin.palm_frame())
     arm.enable()
-    builder = HardwareObservation(TRI, CFG.distance_clip, CFG.force_scale, kin=kin)
+    builder = HardwareObservation(TRI, CFG.contract, kin=kin)
     builder.reset(TRI, {"object_points": np.array([[0.0, 0.0, 0.1]]), "rate_hz": 20.0})
     s = StepInput(0, None, kin.rest, np.zeros(1), np.zeros(6), arm.palm_pose())
     x0 = builder.build(s)

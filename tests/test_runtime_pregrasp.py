@@ -11,7 +11,8 @@ from conftest import asset_root, needs_assets, shipped_specs
 from dgz_cli.cli import deploy_cmd
 from dgz_cli.hw.sim_hand import SimHand
 from dgz_cli.runtime.loop import RunConfig, Runner
-from dgz_cli.runtime.policy import ScriptedClosePolicy
+from dgz_cli.runtime.policy import ClosePolicy
+from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
 from dgz_cli.runtime.pregrasp import deploy_start_pose, thumb_open_pose
 from dgz_cli.runtime.steplog import read_log
 from dgz_cli.spec.catalog import resolve_spec, resolve_urdf
@@ -77,8 +78,9 @@ def test_deploy_ramp_ends_at_the_thumb_open_pose(tmp_path):
     expect, _ = deploy_start_pose(spec, None, str(asset_root()))
     log = tmp_path / "leap.jsonl"
     out = Console(width=200, record=True)
-    code = deploy_cmd.run("leap", "sim", "scripted", None, False, False, True, log, "hold", None, out, rate_hz=100.0,
-                          grasp_steps=1, lift_steps=0, asset_root=str(asset_root()))
+    contract = ControlContract(episode=EpisodeProtocol(control_hz=100.0, grasp_steps=1, lift_steps=0, hold_s=0.0))
+    code = deploy_cmd.run("leap", "sim", "close", None, False, False, True, log, "hold", None, out, contract=contract,
+                          asset_root=str(asset_root()))
     assert code == 0, out.export_text()
     header, steps, _ = read_log(log)
     ramp = [s for s in steps if s["phase"] == "ramp"]
@@ -101,8 +103,9 @@ def test_ramp_goal_is_clipped_to_device_limits(tmp_path):
     log = StepLogger(tmp_path / "ramp.jsonl")
     log.header(spec=spec.name, joints=[r.joint for r in spec.joints], rate_hz=100.0)
     with Narrow(spec, control_dt=0.01) as hand:
-        res = Runner(hand, spec, ScriptedClosePolicy(spec), RunConfig(rate_hz=100.0, grasp_steps=0, lift_steps=0,
-                                                                      ramp_speed=3.0), logger=log).run(hi)
+        contract = ControlContract(episode=EpisodeProtocol(control_hz=100.0, grasp_steps=1, lift_steps=0, hold_s=0.0))
+        res = Runner(hand, spec, ClosePolicy(spec, contract, flex=0.0), RunConfig(contract=contract, ramp_speed=3.0),
+                     logger=log).run(hi)
         hi_d = hand.limits()[1]
     log.close()
     assert res.ok and res.ramp_steps > 1

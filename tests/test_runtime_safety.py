@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from dgz_cli.runtime.filters import KalmanCV
-from dgz_cli.runtime.mapping import MhMap, start_pose
-from dgz_cli.runtime.policy import ScriptedClosePolicy, check_privileged, load_policy
+from dgz_cli.runtime.mapping import start_pose
+from dgz_cli.runtime.policy import ClosePolicy, load_policy
+from dgz_cli.runtime.types import check_privileged
 from dgz_cli.runtime.rate import RateLoop
 from dgz_cli.runtime.safety import SafetyConfig, SafetyFilter, UnsafeAction
+from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import load_spec
 
@@ -26,26 +28,31 @@ def action(wrist=(0, 0, 0, 0, 0, 0), **alpha) -> np.ndarray:
     return np.concatenate([np.asarray(wrist, dtype=float), a.reshape(-1)])
 
 
+def _filter(device_limits=None, cfg=SafetyConfig(), contract=ControlContract()) -> SafetyFilter:
+    return SafetyFilter(SPEC, device_limits, contract, cfg)
+
+
 def test_mh_mapping_uses_spec_orders_and_signs():
-    mh = MhMap(SPEC)
-    assert mh.action_dim == 6 + 3 * 12
-    dq = mh.delta_q(action(middle_proximal=(0.01, 0.002, 0.0), thumb_proximal=(0.0, 0.0, 0.005))[6:])
+    """Normalized actions × the contract's scales (0.015 rad fingers), through M_h's node, primitive and sign."""
+    f = _filter()
+    f.reset([(j.lower + j.upper) / 2 for j in SPEC.joints])  # mid-range: no limit clips the change
+    dq = f.step(action(middle_proximal=(2 / 3, 2 / 15, 0.0), thumb_proximal=(0.0, 0.0, 1 / 3))).dq
     expected = dict.fromkeys(JOINTS, 0.0)
     expected.update(index_mcp=0.01, index_abd=-0.002, thumb_rot=-0.005)  # ABD and ROT rows have sign −1
     assert dq == pytest.approx([expected[j] for j in JOINTS])
 
 
-def test_clip_map_integrate_on_target():
-    f = SafetyFilter(SPEC, None, dt=0.05)
+def test_clip_scale_map_integrate_on_target():
+    f = _filter()
     f.reset(np.zeros(len(JOINTS)))
-    cmd = f.step(action((0.02, -0.5, 0.003, 0, 0, 0), middle_proximal=(0.5, 0.004, 0.0)))
-    assert cmd.wrist == pytest.approx([0.01, -0.01, 0.003, 0, 0, 0])
+    cmd = f.step(action((2.0, -0.5, 0.3, 0, 0, 0), middle_proximal=(5.0, 0.4, 0.0)))
+    assert cmd.wrist == pytest.approx([0.01, -0.005, 0.003, 0, 0, 0])  # clipped to [-1, 1], × 0.01
     t = dict(zip(JOINTS, cmd.target))
-    assert t["index_mcp"] == pytest.approx(0.015) and t["index_abd"] == pytest.approx(-0.004)
-    assert cmd.limited
+    assert t["index_mcp"] == pytest.approx(0.015) and t["index_abd"] == pytest.approx(-0.006)
+    assert cmd.limited and cmd.action.max() == 1.0
     # integrates on the previous *target*: the measured position never enters
-    cmd = f.step(action(middle_proximal=(0.5, 0.0, 0.0)))
-    assert dict(zip(JOINTS, cmd.target))["index_mcp"] == pytest.approx(0.030)
+    cmd = f.step(action(middle_proximal=(1.0, 0.0, 0.0)))
+    assert dict(zip(JOINTS, cmd.target))["index_mcp"] == pytest.approx(0.030) and not cmd.limited
 
 
 def test_joint_limits_and_narrower_device_limits():
@@ -53,28 +60,42 @@ def test_joint_limits_and_narrower_device_limits():
     hi = np.array([j.upper for j in SPEC.joints])
     dev_hi = hi.copy()
     dev_hi[JOINTS.index("index_mcp")] = 1.0
-    f = SafetyFilter(SPEC, (lo - 1, dev_hi), dt=0.05)
+    f = _filter((lo - 1, dev_hi))
     f.reset(np.full(len(JOINTS), 5.0))  # reset clips too
     assert f.target[JOINTS.index("index_mcp")] == pytest.approx(1.0)
     assert f.target[JOINTS.index("index_pip")] == pytest.approx(1.6)
     f.reset(lo)
-    assert f.step(action(middle_proximal=(-0.01, 0, 0))).target[JOINTS.index("index_mcp")] == pytest.approx(-0.1)
+    cmd = f.step(action(middle_proximal=(-1.0, 0, 0)))
+    assert cmd.target[JOINTS.index("index_mcp")] == pytest.approx(-0.1) and cmd.limited
     with pytest.raises(DgzError, match="do not overlap"):
-        SafetyFilter(SPEC, (lo + 10, hi + 20), dt=0.05)
+        _filter((lo + 10, hi + 20))
 
 
 def test_per_step_cap():
-    f = SafetyFilter(SPEC, None, dt=0.05, cfg=SafetyConfig(max_joint_step=0.01))
+    f = _filter(cfg=SafetyConfig(max_joint_step=0.01))
     f.reset(np.zeros(len(JOINTS)))
-    cmd = f.step(action(middle_proximal=(0.015, 0, 0)))
-    assert dict(zip(JOINTS, cmd.target))["index_mcp"] == pytest.approx(0.01)
-    f2 = SafetyFilter(SPEC, None, dt=0.001)  # velocity 3 rad/s · 1 ms = 0.003 rad per step
+    cmd = f.step(action(middle_proximal=(1.0, 0, 0)))
+    assert dict(zip(JOINTS, cmd.target))["index_mcp"] == pytest.approx(0.01) and cmd.limited
+    fast = ControlContract(episode=EpisodeProtocol(control_hz=1000.0, physics_dt=0.001))
+    f2 = _filter(contract=fast)  # velocity 3 rad/s · 1 ms = 0.003 rad per step
     f2.reset(np.zeros(len(JOINTS)))
-    assert dict(zip(JOINTS, f2.step(action(middle_proximal=(0.015, 0, 0))).target))["index_mcp"] == pytest.approx(0.003)
+    assert dict(zip(JOINTS, f2.step(action(middle_proximal=(1.0, 0, 0))).target))["index_mcp"] == pytest.approx(0.003)
+
+
+def test_the_cap_never_binds_on_shipped_hands_at_contract_scales():
+    """So the runtime's targets equal the simulator's (which has no cap)."""
+    from dgz_cli.spec.catalog import resolve_spec, shipped_hands
+
+    c = ControlContract()
+    for hand in shipped_hands():
+        spec = load_spec(resolve_spec(hand))
+        caps = [min(SafetyConfig().max_joint_step, j.velocity / c.episode.control_hz) if j.velocity > 0
+                else SafetyConfig().max_joint_step for j in spec.joints]
+        assert min(caps) >= c.action.finger_scale, hand
 
 
 def test_rejects_nan_and_wrong_size():
-    f = SafetyFilter(SPEC, None, dt=0.05)
+    f = _filter()
     f.reset(np.zeros(len(JOINTS)))
     bad = action()
     bad[10] = np.nan
@@ -86,7 +107,7 @@ def test_rejects_nan_and_wrong_size():
 
 
 def test_ramp_step():
-    f = SafetyFilter(SPEC, None, dt=0.05)
+    f = _filter()
     f.reset(np.zeros(len(JOINTS)))
     goal = np.full(len(JOINTS), 0.05)
     assert np.allclose(f.approach(goal, 0.02), 0.02) and np.allclose(f.approach(goal, 0.02), 0.04)
@@ -134,10 +155,12 @@ def test_rate_loop_absolute_deadlines_with_fake_clock():
     assert loop.periods == pytest.approx([0.05, 0.15, 0.05])
 
 
-def test_scripted_policy_closes_then_holds():
-    p = ScriptedClosePolicy(SPEC, rate=0.01, close_steps=3)
+def test_close_policy_closes_then_holds():
+    p = ClosePolicy(SPEC, flex=0.5, close_steps=3)
     a = [p.act(None) for _ in range(4)]
-    assert np.all(a[0][:6] == 0) and np.all(a[0][6::3] == 0.01) and np.all(a[0][7::3] == 0) and np.all(a[3] == 0)
+    flex_active = np.array([SPEC.activation_mask[n][0] for n in NODES], dtype=bool)
+    assert np.all(a[0][:6] == 0) and np.all(a[0][6::3][flex_active] == 0.5) and np.all(a[0][6::3][~flex_active] == 0)
+    assert np.all(a[0][7::3] == 0) and np.all(a[3] == 0)
 
 
 class Teacher:

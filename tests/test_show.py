@@ -28,7 +28,11 @@ def test_render_png_writes_a_readable_figure(allegro, tmp_path):
 
     spec, urdf = allegro
     out = tmp_path / "figs" / "a.png"  # parent directories are created
-    render_png(spec, urdf, out)
+    from dgz_cli.onboard.compile import Poser, compile_model
+    from dgz_cli.onboard.urdf import load_kinematics
+
+    kin = load_kinematics(urdf, spec.provenance.xacro_args)
+    render_png(spec, kin, Poser(kin, compile_model(kin)), out)
     assert out.is_file()
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     img = matplotlib.image.imread(out)

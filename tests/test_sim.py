@@ -7,7 +7,8 @@ import pytest
 
 from conftest import asset_root, shipped_specs
 from dgz_cli.sim import observe
-from dgz_cli.sim.config import EnvConfig, RewardWeights
+from dgz_cli.spec.contract import ActionLayout, ControlContract, EpisodeProtocol
+from dgz_cli.spec.envconfig import EnvConfig, RewardWeights
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import PRIMITIVES, resolve_objects
 from dgz_cli.sim.reward import reward_terms, total
@@ -42,7 +43,7 @@ def test_scene_steps_one_second_of_random_actions_without_warnings(path):
     assert np.isfinite(obs["nodes"]).all() and np.isfinite(reward).all()
     # observation shapes and masks per hand
     n = len(spec.nodes)
-    assert obs["nodes"].shape == (1, n, observe.NODE_DIM) and obs["global"].shape == (1, observe.GLOBAL_DIM)
+    assert obs["nodes"].shape == (1, n, env.cfg.contract.observation.node_dim) == (1, n, 23) and obs["global"].shape == (1, 16)
     assert obs["physical"].shape == (1, n, 27) and obs["adjacency"].shape == (1, n, n)
     assert obs["mask"][0].tolist() == [spec.activation_mask[x.id] for x in spec.nodes]
     assert env.action_dim == 6 + 3 * n
@@ -85,14 +86,14 @@ def test_nearest_surface_and_projection_by_hand():
 
 def test_success_on_scripted_lift_and_failure_on_drop(monkeypatch):
     """Weld the object to the palm → it rises with the scripted lift: success. Release it: failure."""
-    cfg = EnvConfig(hold_s=0.5)
+    cfg = EnvConfig(contract=ControlContract(episode=EpisodeProtocol(hold_s=0.5)))
 
     def run(attached: bool) -> dict:
         env = GraspEnv([(TRI, SPHERE)], cfg, seed=1, threads=1)
         env.reset()
         s = env.slots[0]
         episode = {}
-        for t in range(cfg.episode_steps):
+        for t in range(cfg.contract.episode.episode_steps):
             if attached:  # carry the object with the palm: place it just below the palm each step
                 d = s.data
                 palm = d.xpos[s.idx.palm_body] + d.xmat[s.idx.palm_body].reshape(3, 3) @ s.idx.palm_center
@@ -156,7 +157,7 @@ def test_builtin_objects_need_no_assets():
 
 
 def test_joint_action_mode():
-    env = GraspEnv([(TRI, SPHERE)], EnvConfig(action_mode="joint"), threads=1)
+    env = GraspEnv([(TRI, SPHERE)], EnvConfig(contract=ControlContract(action=ActionLayout(mode="joint"))), threads=1)
     env.reset()
     assert env.action_dim == 6 + 3 * len(TRI.nodes)
     node = [n.id for n in TRI.nodes].index(TRI.joints[0].node)

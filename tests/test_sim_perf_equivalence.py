@@ -27,7 +27,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from conftest import asset_root, shipped_specs  # noqa: E402
 
-from dgz_cli.sim.config import EnvConfig  # noqa: E402
+from dgz_cli.spec.envconfig import EnvConfig  # noqa: E402
+from dgz_cli.spec.contract import ActionLayout, ControlContract, EpisodeProtocol  # noqa: E402
 from dgz_cli.sim.env import GraspEnv  # noqa: E402
 from dgz_cli.sim.objects import resolve_objects  # noqa: E402
 from dgz_cli.sim.scripted import ScriptedGrasp  # noqa: E402
@@ -59,8 +60,8 @@ CASES = {
     # name: (config, threads, seed, steps, step at which slot 1 gets NaN velocities or None)
     "default": (EnvConfig(), 2, 3, 40, None),
     # short episodes: several resets, successes (a low success bar) and a forced instability
-    "short": (EnvConfig(grasp_steps=30, lift_steps=5, hold_s=0.25, success_fraction=0.0), 2, 4, 60, 45),
-    "joint_serial": (EnvConfig(action_mode="joint"), 1, 5, 20, None),
+    "short": (EnvConfig(contract=ControlContract(episode=EpisodeProtocol(grasp_steps=30, lift_steps=5, hold_s=0.25, success_fraction=0.0))), 2, 4, 60, 45),
+    "joint_serial": (EnvConfig(contract=ControlContract(action=ActionLayout(mode="joint"))), 1, 5, 20, None),
 }
 
 
@@ -73,7 +74,7 @@ def rollout(name: str) -> dict[str, np.ndarray]:
     cfg, threads, seed, steps, poison = CASES[name]
     env = _env(cfg, threads, seed)
     rng = np.random.default_rng(11)
-    scripted = ScriptedGrasp(env.N, env.grasp_offset)
+    scripted = ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)
     obs = env.reset()
     rec: dict[str, list] = {k: [] for k in ("nodes", "global", "reward", "terminated", "truncated", "success",
                                             "unstable", "episode")}
@@ -185,7 +186,7 @@ def _check_against_reference(env: GraspEnv, steps: int = 40) -> int:
     pairs with some hand–object force, so callers can insist the force path was exercised."""
     obs = env.reset()
     rng = np.random.default_rng(0)
-    scripted = ScriptedGrasp(env.N, env.grasp_offset)
+    scripted = ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)
     touched = 0
     for t in range(steps):
         obs, *_ = env.step(_actions(env, scripted, obs, rng))

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dgz_cli.sim.config import EnvConfig, RewardWeights
+from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
+from dgz_cli.spec.envconfig import EnvConfig, RewardWeights
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.sim.reward import reward_terms, total
@@ -28,11 +29,11 @@ def test_lift_term_by_hand():
 
 
 def test_env_rewards_a_carried_object_only_with_a_lift_weight():
-    cfg = EnvConfig(hold_s=0.5, reward=RewardWeights(lift=2.0))
+    cfg = EnvConfig(contract=ControlContract(episode=EpisodeProtocol(hold_s=0.5)), reward=RewardWeights(lift=2.0))
     env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("sphere")[0])], cfg, seed=1, threads=1)
     env.reset()
     s, lifts = env.slots[0], []
-    for _ in range(cfg.episode_steps):
+    for _ in range(cfg.contract.episode.episode_steps):
         d = s.data  # carry the object just below the palm
         palm = d.xpos[s.idx.palm_body] + d.xmat[s.idx.palm_body].reshape(3, 3) @ s.idx.palm_center
         d.qpos[s.idx.object_qadr:s.idx.object_qadr + 3] = palm - np.array([0, 0, 0.1])
@@ -40,7 +41,7 @@ def test_env_rewards_a_carried_object_only_with_a_lift_weight():
         _, _, _, _, info = env.step(np.zeros((1, env.action_dim)))
         lifts.append(float(info["reward_terms"]["lift"][0]))
     env.close()
-    assert lifts[cfg.grasp_steps - 1] == 0.0  # nothing during the grasp phase
+    assert lifts[cfg.contract.episode.grasp_steps - 1] == 0.0  # nothing during the grasp phase
     assert lifts[-1] == pytest.approx(1.0)  # carried the full lift height
     assert info["episode"][0]["success"] and info["episode"][0]["r_lift"] == pytest.approx(np.mean(lifts))
 

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 import torch
 
+from dgz_cli.cli.train_cmd import build
+from dgz_cli.rl.checkpoint import LoadedPolicy, read_meta
 from dgz_cli.rl.config import TrainConfig
-from dgz_cli.rl.runner import Trainer, load_policy
 
 SMOKE = dict(hands=("dgz_tri",), objects="sphere,box", repeat=2, steps_per_env=190, checkpoint_every=5, seed=0)
 
@@ -23,51 +24,61 @@ def _dgz(*args, cwd):
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
-    trainer = Trainer(TrainConfig(iterations=10, **SMOKE), out, None)
+    trainer = build(TrainConfig(iterations=10, **SMOKE), out, None)
     trainer.train()
-    return out, trainer.history
+    return out, trainer
 
 
 def test_training_improves_the_return(run_dir):
-    _, history = run_dir
+    history = run_dir[1].history
     first = np.mean([h["mean_step_reward"] for h in history[:2]])
     last = np.mean([h["mean_step_reward"] for h in history[-2:]])
     assert last > first, (first, last)
 
 
 def test_checkpoint_roundtrip_gives_identical_actions(run_dir, tmp_path):
-    out, _ = run_dir
-    model, meta = load_policy(out)
-    assert meta["iteration"] == 10 and set(meta["training_hands"]) == {"dgz_tri"}
-    assert (out / "model.safetensors").read_bytes()[:8] != b"\x80\x04\x95"  # not a pickle
+    """What eval and deploy load acts exactly like the model that training held in memory."""
+    out, trainer = run_dir
+    loaded = LoadedPolicy(out)
+    meta = loaded.meta
+    assert meta.iteration == 10 and set(meta.training_hands) == {"dgz_tri"}
+    assert meta.contract == trainer.env.cfg.contract and meta.train == trainer.cfg
+    weights = out / meta.weights
+    assert weights.read_bytes()[:8] != b"\x80\x04\x95"  # not a pickle
     from dgz_cli.sim.env import GraspEnv
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.io import load_spec
     from dgz_cli.policy.graph import to_tensors
 
-    env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("sphere")[0])], threads=1)
-    obs = to_tensors(env.reset(1))
-    again, _ = load_policy(out)
+    env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("sphere")[0])], meta.env, threads=1)
+    obs = env.reset(1)
+    trainer.model.eval()
     with torch.no_grad():
-        assert torch.equal(model(obs)[0], again(obs)[0])
+        in_memory = trainer.model(to_tensors(obs))[0].numpy()
+    np.testing.assert_array_equal(loaded.act(obs), in_memory)
+    assert np.abs(in_memory).max() > 0
     env.close()
 
 
 def test_resume_continues_from_the_last_checkpoint(run_dir, tmp_path):
-    out, history = run_dir
+    out, original = run_dir
     import shutil
 
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
-    saved, _ = load_policy(copy)
-    trainer = Trainer(TrainConfig(iterations=11, **SMOKE), copy, None, resume=True)
+    trainer = build(TrainConfig(iterations=11, **SMOKE), copy, None, resume=True)
     assert trainer.iteration == 10 and len(trainer.history) == 10
-    for k, v in saved.state_dict().items():
-        assert torch.equal(trainer.model.state_dict()[k], v)
-    assert trainer.ppo.optimizer.state_dict()["state"], "optimizer state restored"
+    for k, v in original.model.state_dict().items():  # the in-memory model at the end of the first run
+        assert torch.equal(trainer.model.state_dict()[k], v), k
+    before, after = original.ppo.optimizer.state_dict()["state"], trainer.ppo.optimizer.state_dict()["state"]
+    assert before and set(before) == set(after)
+    assert all(torch.equal(torch.as_tensor(before[i][n]), torch.as_tensor(after[i][n])) for i in before for n in before[i])
+    assert trainer.ppo.learning_rate == original.ppo.learning_rate
+    assert trainer.reward_norm.state() == original.reward_norm.state()
     trainer.train()
     assert trainer.iteration == 11 and [h["iteration"] for h in trainer.history] == list(range(1, 12))
+    assert read_meta(copy).iteration == 11
 
 
 def test_resume_refuses_another_preset(run_dir, tmp_path):
@@ -119,13 +130,39 @@ def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     from dgz_cli.spec.io import load_spec
 
     path = REPO / "policies" / name
-    model, meta = load_policy(path)
-    assert set(meta["training_hands"]) == {"allegro", "shadow", "schunk_svh", "ability"}
-    env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("box")[0])], threads=1)
-    with torch.no_grad():
-        mean = model(to_tensors(env.reset(0)))[0]
+    loaded = LoadedPolicy(path)  # format 1, migrated on load
+    meta = loaded.meta
+    assert set(meta.training_hands) == {"allegro", "shadow", "schunk_svh", "ability"}
+    assert meta.contract.action.finger_scale == 0.015 and meta.contract.episode.grasp_steps == 120
+    env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("box")[0])], meta.env, threads=1)
+    mean = loaded.act(env.reset(0))
     env.close()
-    assert mean.shape == (1, env.action_dim) and torch.isfinite(mean).all()
+    assert mean.shape == (1, env.action_dim) and np.isfinite(mean).all()
     assert (path / "MODEL_CARD.md").is_file()
     res = _dgz("eval", "--policy", name, "--hand", "allegro", "--zero-shot", cwd=tmp_path)
     assert res.returncode == 1 and "allegro was a training hand" in res.stderr
+
+
+def test_run_config_file_sets_ppo_and_the_cli_overrides_it(tmp_path):
+    """One source of defaults: TrainConfig; a --config YAML may set any field (PPO included), options win."""
+    from dgz_cli.cli.train_cmd import _load_config
+    from dgz_cli.spec.errors import DgzError
+
+    conf = tmp_path / "run.yaml"
+    conf.write_text("iterations: 7\nppo:\n  num_epochs: 2\n  entropy_coef: 0.001\n")
+    cfg = _load_config({"iterations": 3}, conf, tmp_path / "out", resume=False)
+    assert cfg.iterations == 3 and cfg.ppo.num_epochs == 2 and cfg.ppo.entropy_coef == 0.001
+    assert cfg.repeat == TrainConfig().repeat
+    trainer = build(cfg.model_copy(update=dict(SMOKE, objects="sphere", repeat=1)), tmp_path / "out", None)
+    assert trainer.ppo.cfg.num_epochs == 2 and trainer.meta().train.ppo.entropy_coef == 0.001
+    trainer.env.close()
+    conf.write_text("ppo:\n  num_epochs: 0\n")
+    with pytest.raises(DgzError, match="run.yaml: --ppo.num-epochs"):
+        _load_config({}, conf, tmp_path / "out", resume=False)
+
+
+def test_cli_defaults_come_from_the_config_model():
+    res = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "train", "--help"], capture_output=True, text=True,
+                         env={"COLUMNS": "250", "PATH": "/usr/bin:/bin"})
+    text = " ".join(res.stdout.split())
+    assert f"(default: {TrainConfig().iterations})" in text and f"(default: {TrainConfig().repeat})" in text

@@ -54,16 +54,3 @@ def run(hands: list[str] | None, repeat: int, asset_root: str | None) -> dict:
                 throughput_hands_per_s=round(len(rows) / total, 3) if total else None,
                 latency_max_s=max((r["onboard_s"] for r in rows.values()), default=None),
                 peak_rss_mb=round(peak_mb, 1))
-
-
-def print_table(result: dict, console) -> None:
-    from rich.table import Table
-
-    t = Table(title="dgz bench onboard (median seconds per hand)")
-    cols = ["parse_s", "compile_s", "excite_s", "onboard_s"]
-    t.add_column("hand")
-    for c in cols:
-        t.add_column(c, justify="right")
-    for name, r in result["hands"].items():
-        t.add_row(name, *(f"{r[c]:.3f}" for c in cols))
-    console.print(t)

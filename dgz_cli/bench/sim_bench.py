@@ -25,7 +25,7 @@ def run(hands: list[str], objects: str, envs: int, steps: int, threads: int, ass
     import mujoco
     import numpy as np
 
-    from dgz_cli.sim.config import EnvConfig
+    from dgz_cli.spec.envconfig import EnvConfig
     from dgz_cli.sim.env import GraspEnv
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec

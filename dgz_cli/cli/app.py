@@ -103,39 +103,46 @@ def schema(overrides: bool = typer.Option(False, "--overrides", help="print the 
     sys.stdout.write(json.dumps(model.model_json_schema(), indent=2) + "\n")
 
 
+def _train_default(field: str) -> str:
+    """A TrainConfig field's description and default, for --help (the config model is the one source)."""
+    from dgz_cli.rl.config import TrainConfig
+
+    f = TrainConfig.model_fields[field]
+    default = ",".join(f.default) if isinstance(f.default, tuple) else f.default
+    return f"{f.description or field} (default: {default})"
+
+
 @app.command()
 def train(
-    hands: str = typer.Option("allegro,shadow,schunk_svh,ability", "--hands", help="comma-separated training hands"),
-    objects: str = typer.Option("ycb45", "--objects", help="ycb45, primitives, or comma-separated object names"),
-    preset: str = typer.Option("compact", "--preset", help="network size: compact (CPU) or paper"),
-    ablation: str = typer.Option("full", "--ablation",
-                                 help="full, no_physical, early_fusion, no_primitives or no_mask (Table I variants)"),
     out_dir: Path = typer.Option(..., "--out", help="run directory (checkpoints, logs, curve)"),
-    iterations: int = typer.Option(100, "--iterations", min=1, help="PPO updates"),
-    repeat: int = typer.Option(3, "--repeat", min=1, help="N_env = hands × objects × repeat"),
-    steps: int = typer.Option(130, "--steps", min=1, help="transitions per env per update"),
-    checkpoint_every: int = typer.Option(5, "--checkpoint-every", min=1, help="iterations between checkpoints"),
-    seed: int = typer.Option(0, "--seed"),
-    bc_episodes: int = typer.Option(0, "--bc-episodes", min=0,
-                                    help="warm start: clone the scripted grasp over this many episodes per env "
-                                         "before PPO (0 = from scratch, as in the paper)"),
-    bc_epochs: int = typer.Option(10, "--bc-epochs", min=1, help="epochs of the behaviour-cloning fit"),
-    bc_dagger: int = typer.Option(0, "--bc-dagger", min=0,
-                                  help="DAgger rounds after the clone: it acts, the scripted grasp labels, refit"),
-    lift_weight: float = typer.Option(0.0, "--lift-weight", min=0.0,
-                                      help="weight of r_lift, the object's rise after the grasp phase "
-                                           "(not in the paper; 0 = the paper's reward)"),
-    resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint"),
+    config: Optional[Path] = typer.Option(None, "--config", help="YAML run config (any TrainConfig field, including "
+                                          "ppo: {...} hyper-parameters); options given here override it"),
+    hands: Optional[str] = typer.Option(None, "--hands", help="comma-separated " + _train_default("hands")),
+    objects: Optional[str] = typer.Option(None, "--objects", help=_train_default("objects")),
+    preset: Optional[str] = typer.Option(None, "--preset", help=_train_default("preset")),
+    ablation: Optional[str] = typer.Option(None, "--ablation", help=_train_default("ablation")),
+    iterations: Optional[int] = typer.Option(None, "--iterations", help=_train_default("iterations")),
+    repeat: Optional[int] = typer.Option(None, "--repeat", help=_train_default("repeat")),
+    steps: Optional[int] = typer.Option(None, "--steps", help=_train_default("steps_per_env")),
+    checkpoint_every: Optional[int] = typer.Option(None, "--checkpoint-every", help=_train_default("checkpoint_every")),
+    seed: Optional[int] = typer.Option(None, "--seed", help=_train_default("seed")),
+    bc_episodes: Optional[int] = typer.Option(None, "--bc-episodes", help=_train_default("bc_episodes")),
+    bc_epochs: Optional[int] = typer.Option(None, "--bc-epochs", help=_train_default("bc_epochs")),
+    bc_dagger: Optional[int] = typer.Option(None, "--bc-dagger", help=_train_default("bc_dagger_rounds")),
+    lift_weight: Optional[float] = typer.Option(None, "--lift-weight", help=_train_default("lift_weight")),
+    resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint "
+                                "(its recorded config; --iterations may extend it)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Train one MAGCN policy on several hands with PPO (paper hyper-parameters)."""
     from dgz_cli.cli import train_cmd
 
-    cfg = dict(hands=tuple(h for h in hands.split(",") if h), objects=objects, preset=preset, ablation=ablation,
-               iterations=iterations, repeat=repeat, steps_per_env=steps, checkpoint_every=checkpoint_every, seed=seed,
-               bc_episodes=bc_episodes, bc_epochs=bc_epochs, bc_dagger_rounds=bc_dagger,
-               lift_weight=lift_weight)
-    raise typer.Exit(train_cmd.run(cfg, out_dir, resume, asset_root, out))
+    given = dict(hands=None if hands is None else tuple(h for h in hands.split(",") if h), objects=objects,
+                 preset=preset, ablation=ablation, iterations=iterations, repeat=repeat, steps_per_env=steps,
+                 checkpoint_every=checkpoint_every, seed=seed, bc_episodes=bc_episodes, bc_epochs=bc_epochs,
+                 bc_dagger_rounds=bc_dagger, lift_weight=lift_weight)
+    raise typer.Exit(train_cmd.run({k: v for k, v in given.items() if v is not None}, config, out_dir, resume,
+                                   asset_root, out))
 
 
 @app.command()
@@ -200,11 +207,14 @@ def bench_sim(
 
 @app.command()
 def deploy(
-    hand: Optional[str] = typer.Option(None, "--hand", help="revo2, inspire, leap (hand files), a hand file path, or sim"),
-    port: Optional[str] = typer.Option(None, "--port", help="serial port (prefer /dev/serial/by-id/...), or sim"),
+    hand: Optional[str] = typer.Option(None, "--hand", help="revo2, inspire, leap (hand files), a hand file path, or "
+                                       "sim (the evaluation scene in MuJoCo, see --sim-hand/--sim-object/--seed)"),
+    port: Optional[str] = typer.Option(None, "--port", help="serial port (prefer /dev/serial/by-id/...), or sim "
+                                       "(this hand's spec in the MuJoCo evaluation scene)"),
     policy: str = typer.Option("scripted", "--policy",
-                               help="'scripted', a trained checkpoint folder or a name under policies/ "
-                                    "(e.g. dgz-cpu-warmstart), or package.module:factory (called with the HandSpec)"),
+                               help="'scripted' (the spec-only scripted grasp of `dgz eval`; needs the object), "
+                                    "'close' (blind close, no object needed), a trained checkpoint folder or a name "
+                                    "under policies/ (e.g. dgz-cpu-warmstart), or package.module:factory"),
     object_points: Optional[Path] = typer.Option(None, "--object-points",
                                                  help="object point cloud: .npy (P, 3) or 'x y z' lines, metres, "
                                                       "palm frame (f, l, n) at the start pose; or sphere, box, "
@@ -222,6 +232,12 @@ def deploy(
     log: Optional[Path] = typer.Option(None, "--log", help="write every step as JSON lines to this file"),
     on_exit: str = typer.Option("hold", "--on-exit", help="hold or relax when the run ends or is stopped"),
     replay: Optional[Path] = typer.Option(None, "--replay", help="play a step log back on the simulated hand and exit"),
+    sim_hand: Optional[str] = typer.Option(None, "--sim-hand", help="with --hand sim: the hand (shipped name or spec "
+                                           "file; default dgz_tri, which needs no assets)"),
+    sim_object: str = typer.Option("sphere", "--sim-object", help="with the MuJoCo backend: the object (a YCB-45 "
+                                   "name or sphere/box/cylinder/capsule)"),
+    seed: int = typer.Option(0, "--seed", help="with the MuJoCo backend: the reset seed (= trial 0 of `dgz eval "
+                             "--seed` on that hand and object)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Run a grasp policy on a real hand (or its fake device, or the MuJoCo sim) with a safety filter."""
@@ -229,7 +245,7 @@ def deploy(
 
     raise typer.Exit(deploy_cmd.run(hand, port, policy, object_points, dry_run, fake, yes, log, on_exit, replay, out,
                                     asset_root=asset_root, allow_privileged=allow_privileged, arm=arm,
-                                    arm_port=arm_port))
+                                    arm_port=arm_port, sim_hand=sim_hand, sim_object=sim_object, seed=seed))
 
 
 @bench_app.command("deploy")
@@ -272,7 +288,16 @@ def bench_onboard(
 
     result = onboard_bench.run([h for h in (hands or "").split(",") if h] or None, repeat, asset_root)
     if not as_json:
-        onboard_bench.print_table(result, out)
+        from rich.table import Table
+
+        t = Table(title="dgz bench onboard (median seconds per hand)")
+        cols = ["parse_s", "compile_s", "excite_s", "onboard_s"]
+        t.add_column("hand")
+        for c in cols:
+            t.add_column(c, justify="right")
+        for name, r in result["hands"].items():
+            t.add_row(name, *(f"{r[c]:.3f}" for c in cols))
+        out.print(t)
     sys.stdout.write(json.dumps(result, indent=2) + "\n")
 
 

@@ -36,6 +36,10 @@ def run(ref: str | None, png: Path | None, asset_root: str | None, list_hands: b
     if png is not None:
         from dgz_cli.viz.show import render_png
 
-        render_png(spec, resolve_urdf(spec.provenance.urdf, asset_root), png)
+        from dgz_cli.onboard.compile import Poser, compile_model
+        from dgz_cli.onboard.urdf import load_kinematics
+
+        kin = load_kinematics(resolve_urdf(spec.provenance.urdf, asset_root), spec.provenance.xacro_args)
+        render_png(spec, kin, Poser(kin, compile_model(kin)), png)
         console.print(f"[green]wrote[/] {png}")
     return 0

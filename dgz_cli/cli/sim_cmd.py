@@ -10,15 +10,16 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+from rich.markup import escape
 from rich.table import Table
 
 from dgz_cli.spec.errors import DgzError
 
 
 def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Console) -> int:
-    from dgz_cli.sim.config import EnvConfig
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.sim.scene import write_scene_xml
+    from dgz_cli.spec.envconfig import EnvConfig
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.io import load_spec
 
@@ -32,30 +33,31 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console) -> int:
-    from dgz_cli.sim.config import EnvConfig
     from dgz_cli.sim.evaluate import run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
+    from dgz_cli.spec.envconfig import EnvConfig
     from dgz_cli.spec.io import atomic_write, load_spec
 
     make_policy, meta = _policy_factory(policy)
+    specs = [load_spec(resolve_spec(h)) for h in hands]
     if zero_shot:
         if meta is None:
             raise DgzError("--zero-shot needs a trained policy's list of training hands",
                            "drop --zero-shot for --policy scripted")
-        seen = sorted(set(meta["training_hands"]) & {Path(h).stem for h in hands})
+        seen = sorted(set(meta.training_hands) & {s.name for s in specs})
         if seen:
             raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
                            f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
-    cfg = EnvConfig(action_mode=meta["policy"]["action_mode"]) if meta else EnvConfig()
-    specs = [load_spec(resolve_spec(h)) for h in hands]
+    cfg = meta.env if meta is not None else EnvConfig()  # a policy is evaluated under the contract it was trained with
     if meta is not None:
         from dgz_cli.rl.checkpoint import spec_hash
 
-        for h in hands:
-            old_hash = meta["training_hands"].get(Path(h).stem)
+        for h, spec in zip(hands, specs):
+            old_hash = meta.training_hands.get(spec.name)
             if old_hash is not None and old_hash != spec_hash(resolve_spec(h)):
-                console.print(f"[yellow]warning:[/] the spec of training hand {h} changed since {policy} was trained")
+                console.print(f"[yellow]warning:[/] the spec of training hand {escape(spec.name)} changed since "
+                              f"{escape(policy)} was trained")
     objs = resolve_objects(objects, asset_root)
     pairs = [(s, o) for s in specs for o in objs]
     t0 = time.perf_counter()
@@ -69,10 +71,11 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
             records += run_episodes([(spec, o) for o in objs], make_policy, trials, cfg, seed, asset_root,
                                     progress=lambda done, total: bar.update(task, completed=before + done))
     summary = summarize(records)
-    protocol = dict(lift_height_m=cfg.lift_height, hold_s=cfg.hold_s, success_fraction=cfg.success_fraction,
-                    trials_per_object=trials, seed=seed, episode_steps=cfg.episode_steps)
-    table = Table(title=f"{policy} — success = object lifted {cfg.lift_height} m (≥ {cfg.success_fraction:.0%} kept) "
-                        f"and held {cfg.hold_s} s; {trials} trials per object, seed {seed}")
+    ep = cfg.contract.episode
+    protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
+                    trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps)
+    table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "
+                        f"kept) and held {ep.hold_s} s; {trials} trials per object, seed {seed}")
     table.add_column("hand")
     table.add_column("success rate", justify="right")
     table.add_column("episodes", justify="right")
@@ -82,7 +85,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     console.print(f"[dim]{len(records)} episodes in {time.perf_counter() - t0:.0f} s[/]")
     if json_out is not None:
         report = dict(policy=policy, protocol=protocol,
-                      training_hands=sorted(meta["training_hands"]) if meta else [],
+                      training_hands=sorted(meta.training_hands) if meta else [],
                       hands={k: dict(success_rate=v["success_rate"], episodes=v["episodes"], objects=v["objects"])
                              for k, v in summary.items()})
         atomic_write(json_out, json.dumps(report, indent=2) + "\n")
@@ -96,36 +99,20 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     return 0
 
 
-class _Trained:
-    """A checkpoint's MAGCN acting deterministically (the mean action), one torch thread."""
-
-    def __init__(self, model) -> None:
-        self.model = model
-
-    def reset(self, mask) -> None:
-        pass
-
-    def act(self, obs):
-        import torch
-
-        from dgz_cli.policy.graph import to_tensors
-
-        torch.set_num_threads(1)
-        with torch.no_grad():
-            return self.model(to_tensors(obs))[0].numpy()
-
-
 def _policy_factory(policy: str):
-    """'scripted' → (factory, None); a checkpoint dir or a policies/ name → (factory, meta)."""
+    """'scripted' → (factory, None); a checkpoint dir or a policies/ name → (factory, its CheckpointMeta)."""
     if policy == "scripted":
         from dgz_cli.sim.scripted import ScriptedGrasp
 
-        return (lambda env: ScriptedGrasp(env.N, env.grasp_offset)), None
-    from dgz_cli.rl.checkpoint import resolve_checkpoint
-    from dgz_cli.rl.runner import load_policy
+        return (lambda env: ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)), None
+    from dgz_cli.rl.checkpoint import LoadedPolicy, resolve_checkpoint
 
-    model, meta = load_policy(resolve_checkpoint(policy) or Path(policy))
-    return (lambda env: _Trained(model)), meta
+    directory = resolve_checkpoint(policy)
+    if directory is None:
+        raise DgzError(f"--policy {policy!r}: no such checkpoint folder or name under policies/",
+                       "use 'scripted', a run directory written by `dgz train`, or a shipped policy name")
+    loaded = LoadedPolicy(directory)
+    return (lambda env: loaded), loaded.meta
 
 
 def table(files: list[Path], console: Console) -> int:

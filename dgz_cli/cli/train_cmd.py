@@ -9,30 +9,76 @@ from rich.console import Console
 from rich.table import Table
 
 
-def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, console: Console) -> int:
-    from torch.utils.tensorboard import SummaryWriter
-
-    from dgz_cli.rl.config import TrainConfig
-    from dgz_cli.rl.runner import Trainer, write_csv, write_curve
-
+def _load_config(given: dict, config_file: Path | None, out: Path, resume: bool):
+    """TrainConfig from (in increasing priority) its defaults, the run's own record when resuming, a
+    ``--config`` YAML and the options given on the command line."""
+    import yaml
     from pydantic import ValidationError
 
-    from dgz_cli.policy.presets import PRESETS
+    from dgz_cli.rl.config import TrainConfig
     from dgz_cli.spec.errors import DgzError
 
+    base: dict = {}
+    if resume and (out / "checkpoint.yaml").is_file():
+        from dgz_cli.rl.checkpoint import read_meta
+
+        base = read_meta(out).train.model_dump()
+    if config_file is not None:
+        try:
+            data = yaml.safe_load(config_file.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+            raise DgzError(f"{config_file}: cannot read the run config ({' '.join(str(exc).split())})",
+                           "give a YAML mapping of TrainConfig fields (see docs/training.md)") from None
+        if not isinstance(data, dict):
+            raise DgzError(f"{config_file}: the run config must be a YAML mapping", "see docs/training.md")
+        base.update(data)
+    base.update(given)
     try:
-        cfg = TrainConfig(**cfg_kwargs)
+        return TrainConfig(**base)
     except ValidationError as exc:
         e = exc.errors()[0]
-        raise DgzError(f"--{'.'.join(map(str, e['loc'])).replace('_', '-')}: {e['msg']}", "see `dgz train --help`") from None
+        where = f"{config_file}: " if config_file is not None and e["loc"] and e["loc"][0] not in given else ""
+        raise DgzError(f"{where}--{'.'.join(map(str, e['loc'])).replace('_', '-')}: {e['msg']}",
+                       "see `dgz train --help` and docs/training.md") from None
+
+
+def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None, on_warm_start=None):
+    """The composition root of training: specs, objects and the env from ``cfg`` (a TrainConfig), then the
+    Trainer that receives them. Bad input fails here, before anything is written."""
+    from dgz_cli.policy.presets import PRESETS
+    from dgz_cli.rl.checkpoint import spec_hash
+    from dgz_cli.rl.runner import Trainer, env_config
+    from dgz_cli.sim.env import GraspEnv
+    from dgz_cli.sim.objects import resolve_objects
+    from dgz_cli.sim.scripted import ScriptedGrasp
+    from dgz_cli.spec.catalog import resolve_spec
+    from dgz_cli.spec.errors import DgzError
+    from dgz_cli.spec.io import load_spec
+
     if cfg.preset not in PRESETS:
         raise DgzError(f"--preset '{cfg.preset}' is not a MAGCN preset", f"choose one of: {', '.join(sorted(PRESETS))}")
-    from dgz_cli.sim.objects import resolve_objects
-    from dgz_cli.spec.catalog import resolve_spec
+    spec_paths = {h: resolve_spec(h) for h in cfg.hands}
+    specs = [load_spec(p) for p in spec_paths.values()]
+    objs = resolve_objects(cfg.objects, asset_root)
+    pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
+    env = GraspEnv(pairs, env_config(cfg), seed=cfg.seed, asset_root=asset_root, threads=cfg.threads,
+                   use_pen=cfg.ablation != "no_mask")
+    try:
+        return Trainer(cfg, env, out, {s.name: spec_hash(p) for s, p in zip(specs, spec_paths.values())},
+                       resume=resume, log=log, on_warm_start=on_warm_start,
+                       teacher_factory=lambda e: ScriptedGrasp(e.N, e.grasp_offset, e.cfg.contract))
+    except BaseException:
+        env.close()
+        raise
 
-    for h in cfg.hands:  # fail on bad input before anything is created
-        resolve_spec(h)
-    resolve_objects(cfg.objects, asset_root)
+
+def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_root: str | None, console: Console) -> int:
+    from torch.utils.tensorboard import SummaryWriter
+
+    from dgz_cli.rl.runner import write_csv, write_curve
+
+    cfg = _load_config(given, config_file, out, resume)
+    trainer = build(cfg, out, asset_root, resume, log=lambda row: log(row), on_warm_start=lambda stats: warm(stats))
     out.mkdir(parents=True, exist_ok=True)
     writer = SummaryWriter(log_dir=str(out / "tb"))
 
@@ -59,7 +105,6 @@ def run(cfg_kwargs: dict, out: Path, resume: bool, asset_root: str | None, conso
                       f"value MSE {stats['bc_value_loss']:.3f} [dim]collect {stats['collect_s']}s fit {stats['fit_s']}s[/]",
                       highlight=False)
 
-    trainer = Trainer(cfg, out, asset_root, resume=resume, log=log, on_warm_start=warm)
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {', '.join(cfg.hands)} × {cfg.objects}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
     previous = signal.getsignal(signal.SIGTERM)

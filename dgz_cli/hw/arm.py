@@ -1,7 +1,8 @@
 """The arm interface that executes the wrist command, and the pose math shared by every arm.
 
 A wrist command is 6 numbers per control step: Δp (m) and Δθ (rad, rotation vector), in the *palm frame*
-(axes f, l, n of the HandSpec) while the policy runs, or in the arm's *base frame* for the scripted lift.
+(axes f, l, n of the HandSpec) or the arm's *base frame*, plus the protocol's ``lift`` (m along the base
++z, not subject to the per-step cap, as in the simulator).
 :class:`WristTracker` integrates such increments into a flange target in the base frame, with a per-step
 cap, a workspace box and a maximum rotation away from the start orientation, and reports the palm pose
 relative to the palm frame at the start (what the observation builder needs).
@@ -81,8 +82,8 @@ class WristTracker:
     def _palm(self, p: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return p + r @ self.c_fp, r @ self.r_fp
 
-    def step(self, delta: np.ndarray, frame: str = "palm") -> bool:
-        """Apply one increment (6,); returns True when a limit changed it."""
+    def step(self, delta: np.ndarray, frame: str = "palm", lift: float = 0.0) -> bool:
+        """Apply one increment (6,) and a lift (m, base +z); returns True when a limit changed it."""
         d = np.asarray(delta, dtype=float).reshape(6)
         to_base = self.r @ self.r_fp if frame == "palm" else np.eye(3)
         dp, dw = to_base @ d[:3], to_base @ d[3:]
@@ -93,6 +94,7 @@ class WristTracker:
             if n > cap:
                 v *= cap / n
                 limited = True
+        dp = dp + np.array([0.0, 0.0, float(lift)])
         p = np.clip(self.p + dp, lim.workspace[:, 0], lim.workspace[:, 1])
         r = rotvec_to_matrix(dw) @ self.r
         if matrix_angle(r @ self.r0.T) > lim.max_rotation:
@@ -120,7 +122,7 @@ class ArmInterface:
     def enable(self) -> None:
         pass
 
-    def command(self, delta: np.ndarray, frame: str = "palm") -> dict:
+    def command(self, delta: np.ndarray, frame: str = "palm", lift: float = 0.0) -> dict:
         return {}
 
     def palm_pose(self) -> tuple[np.ndarray, np.ndarray]:
@@ -150,8 +152,8 @@ class SimArm(ArmInterface):
     def enable(self) -> None:
         self.tracker.start(np.zeros(3), NOMINAL_PALM @ self.tracker.r_fp.T)
 
-    def command(self, delta: np.ndarray, frame: str = "palm") -> dict:
-        limited = self.tracker.step(delta, frame)
+    def command(self, delta: np.ndarray, frame: str = "palm", lift: float = 0.0) -> dict:
+        limited = self.tracker.step(delta, frame, lift)
         return {"arm_target": [*self.tracker.p, *matrix_to_euler(self.tracker.r)], "arm_limited": limited}
 
     def palm_pose(self) -> tuple[np.ndarray, np.ndarray]:

@@ -129,8 +129,8 @@ class PiperArm(ArmInterface):
         self.tracker.start(*units_to_pose(self.measured()))
         self.enabled = True
 
-    def command(self, delta: np.ndarray, frame: str = "palm") -> dict:
-        limited = self.tracker.step(delta, frame)
+    def command(self, delta: np.ndarray, frame: str = "palm", lift: float = 0.0) -> dict:
+        limited = self.tracker.step(delta, frame, lift)
         units = pose_to_units(self.tracker.p, self.tracker.r)
         self._call("EndPoseCtrl", *units)
         return {"arm_target": list(units), "arm_limited": limited}

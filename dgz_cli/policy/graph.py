@@ -1,12 +1,7 @@
 """Observation dict → tensors, and the GCN normalized adjacency (dense, batched; hand graphs have ~20 nodes).
 
-Observation contract (see ``dgz_cli.sim.observe`` / ``dgz_cli.sim.env``), batch B padded to N nodes:
-    nodes      (B, N, 23) float32   [d 3, θ 3, θ̇ 3, c 1, f 1, finger one-hot 6, node-type one-hot 6]
-    global     (B, 16)    float32
-    adjacency  (B, N, N)  float32   A[i, j] = 1 iff node i is the parent of node j
-    physical   (B, N, 27) float32   URDF-derived priors
-    mask       (B, N, 3)  float32   activation mask (FLEX, ABD, ROT)
-    node_valid (B, N)     bool      False on padding
+The observation's keys, shapes and column layout are the control contract's
+(:mod:`dgz_cli.spec.contract`).
 """
 
 from __future__ import annotations
@@ -16,18 +11,14 @@ from typing import Mapping
 import numpy as np
 import torch
 
-from dgz_cli.spec.models import NODE_TYPES
-
 OBS_KEYS = ("nodes", "global", "adjacency", "physical", "mask", "node_valid")
-COL_TYPE = 17  # first node-type one-hot column of ``nodes`` (dgz_cli.sim.observe.COL_TYPE)
-COL_WRIST = COL_TYPE + NODE_TYPES.index("wrist")  # = 17
 _RANK = {"nodes": 3, "global": 2, "adjacency": 3, "physical": 3, "mask": 3, "node_valid": 2}
 
 
 def to_tensors(obs: Mapping[str, np.ndarray | torch.Tensor], device: str | torch.device = "cpu") -> dict[str, torch.Tensor]:
     """Convert an observation dict (numpy or torch) to float32 tensors on ``device`` (``node_valid`` → bool).
 
-    Unknown keys are dropped. An unbatched observation (``nodes`` of shape (N, 23)) gets a batch axis of 1.
+    Unknown keys are dropped. An unbatched observation (``nodes`` of shape (N, node_dim)) gets a batch axis of 1.
     """
     missing = [k for k in OBS_KEYS if k not in obs]
     if missing:

@@ -1,9 +1,9 @@
 """MAGCN: Morphology-Aligned Graph Convolutional Network actor-critic (paper Sec. III-C-3, Supp. S3).
 
     E_p   = φ_p(X_phys)                      Linear(27→32) · LeakyReLU · Linear(32→d_p)       (B, N, d_p)
-    H^(0) = X_node                                                                              (B, N, 23)
+    H^(0) = X_node                                                                              (B, N, node_dim)
     H^(l) = ReLU(LayerNorm(Â [H^(l-1) ‖ E_p] W^(l))),  l = 1..L                                (B, N, w_l)
-    E_g   = φ_g(x_g)                         Linear(16→256) · LeakyReLU                         (B, 256)
+    E_g   = φ_g(x_g)                         Linear(global_dim→256) · LeakyReLU                 (B, 256)
     wrist = φ_dec,wrist([E_g ‖ e_wrist])     Linear(·→128) · LeakyReLU · Linear(128→6)          (B, 6)
     α_i   = φ_dec,node([E_node[i] ‖ M[i]])   Linear(·→128) · LeakyReLU · Linear(128→3)          (B, N, 3)
     V     = φ_v([E_g ‖ mean_valid E_node])   Linear(·→128) · ReLU · Linear(128→1)               (B,)
@@ -12,7 +12,8 @@ Ablations: ``use_physical=False`` drops E_p, ``early_fusion`` concatenates E_p a
 ``use_mask=False`` feeds zeros for M. Padded nodes have zero rows/columns in Â and zeroed embeddings, so
 they never influence valid outputs; their action dims are zero in the mean and excluded from log-probs.
 The Gaussian policy has a learned state-independent log-std: 6 wrist values + 3 per-primitive values
-shared by all nodes.
+shared by all nodes. Feature and action sizes, and the column that marks wrist nodes, come from the control
+contract the network is built for (``MAGCN(cfg, contract)``).
 """
 
 from __future__ import annotations
@@ -22,8 +23,10 @@ import math
 import torch
 from torch import nn
 
-from dgz_cli.policy.graph import COL_WRIST, action_valid, masked_mean, normalized_adjacency
+from dgz_cli.policy.graph import action_valid, masked_mean, normalized_adjacency
 from dgz_cli.policy.presets import MagcnConfig
+from dgz_cli.spec.contract import ControlContract
+from dgz_cli.spec.models import NODE_TYPES
 
 Obs = dict[str, torch.Tensor]
 
@@ -36,25 +39,29 @@ def _mlp(i: int, h: int, o: int, act: type[nn.Module], out_gain: float) -> nn.Se
 
 
 class MAGCN(nn.Module):
-    def __init__(self, cfg: MagcnConfig = MagcnConfig()) -> None:
+    def __init__(self, cfg: MagcnConfig = MagcnConfig(), contract: ControlContract = ControlContract()) -> None:
         super().__init__()
-        self.cfg = cfg
+        self.cfg, self.contract = cfg, contract
+        lay, act = contract.observation, contract.action
+        self.node_dim, self.global_dim = lay.node_dim, lay.global_dim
+        self.wrist_dim, self.n_prim = act.wrist_dim, act.n_prim
+        self.wrist_col = lay.node_col("node_type").start + NODE_TYPES.index("wrist")
         p = cfg.phys_out if cfg.use_physical else 0
         self.phys = (nn.Sequential(nn.Linear(cfg.phys_dim, cfg.phys_hidden), nn.LeakyReLU(),
                                    nn.Linear(cfg.phys_hidden, cfg.phys_out)) if cfg.use_physical else None)
-        ins = [cfg.node_dim, *cfg.gcn_widths[:-1]]
+        ins = [self.node_dim, *cfg.gcn_widths[:-1]]
         self.fuse = [cfg.use_physical and (l == 0 or not cfg.early_fusion) for l in range(cfg.num_layers)]
         # W^(l) has no bias: the LayerNorm's shift plays that role (a bias inside Â(·) would be degree-scaled).
         self.gcn = nn.ModuleList(nn.Linear(i + (p if f else 0), o, bias=False)
                                  for i, o, f in zip(ins, cfg.gcn_widths, self.fuse))
         self.norms = nn.ModuleList(nn.LayerNorm(o) for o in cfg.gcn_widths)
-        self.glob = nn.Sequential(nn.Linear(cfg.global_dim, cfg.global_hidden), nn.LeakyReLU())
+        self.glob = nn.Sequential(nn.Linear(self.global_dim, cfg.global_hidden), nn.LeakyReLU())
         d = cfg.gcn_widths[-1]
-        self.wrist_head = _mlp(cfg.global_hidden + d, cfg.head_hidden, cfg.wrist_dim, nn.LeakyReLU, 0.01)
-        self.node_head = _mlp(d + cfg.n_prim, cfg.head_hidden, cfg.n_prim, nn.LeakyReLU, 0.01)
+        self.wrist_head = _mlp(cfg.global_hidden + d, cfg.head_hidden, self.wrist_dim, nn.LeakyReLU, 0.01)
+        self.node_head = _mlp(d + self.n_prim, cfg.head_hidden, self.n_prim, nn.LeakyReLU, 0.01)
         self.value_head = _mlp(cfg.global_hidden + d, cfg.value_hidden, 1, nn.ReLU, 1.0)
-        self.log_std_wrist = nn.Parameter(torch.full((cfg.wrist_dim,), cfg.init_log_std))
-        self.log_std_prim = nn.Parameter(torch.full((cfg.n_prim,), cfg.init_log_std))
+        self.log_std_wrist = nn.Parameter(torch.full((self.wrist_dim,), cfg.init_log_std))
+        self.log_std_prim = nn.Parameter(torch.full((self.n_prim,), cfg.init_log_std))
 
     # ------------------------------------------------------------------ encoder
     def encode(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor]:
@@ -73,7 +80,7 @@ class MAGCN(nn.Module):
 
     def wrist_embedding(self, obs: Obs, h: torch.Tensor) -> torch.Tensor:
         """(B, w_L): mean embedding of the wrist-type node(s); masked mean of all nodes if a graph has none."""
-        w = obs["nodes"][..., COL_WRIST] * obs["node_valid"].to(h.dtype)  # (B, N)
+        w = obs["nodes"][..., self.wrist_col] * obs["node_valid"].to(h.dtype)  # (B, N)
         cnt = w.sum(-1, keepdim=True)
         e = torch.bmm((w / torch.where(cnt > 0, cnt, torch.ones_like(cnt))).unsqueeze(1), h).squeeze(1)
         return torch.where(cnt > 0, e, masked_mean(h, obs["node_valid"]))
@@ -90,27 +97,35 @@ class MAGCN(nn.Module):
         m = obs["mask"] if self.cfg.use_mask else torch.zeros_like(obs["mask"])
         wrist = self.wrist_head(torch.cat([eg, self.wrist_embedding(obs, h)], dim=-1))
         alpha = self.node_head(torch.cat([h, m], dim=-1)) * valid.to(h.dtype)[..., None]
-        mean = torch.cat([wrist, alpha.reshape(b, n * self.cfg.n_prim)], dim=-1)
-        av = action_valid(valid, self.cfg.wrist_dim, self.cfg.n_prim).to(h.dtype)
+        mean = torch.cat([wrist, alpha.reshape(b, n * self.n_prim)], dim=-1)
+        av = action_valid(valid, self.wrist_dim, self.n_prim).to(h.dtype)
         log_std = torch.cat([self.log_std_wrist, self.log_std_prim.repeat(n)]).expand(b, -1) * av
         value = self.value_head(torch.cat([eg, masked_mean(h, valid)], dim=-1)).squeeze(-1)
         return mean, log_std, value
 
-    @torch.no_grad()
-    def act(self, obs: Obs, deterministic: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Sample (or take the mean) → action (B, 6+3N) (zero on padded dims), log_prob (B,), value (B,).
+    def action_valid(self, obs: Obs) -> torch.Tensor:
+        """(B, action_dim) bool: the action dims of real (not padded) nodes."""
+        return action_valid(obs["node_valid"], self.wrist_dim, self.n_prim)
 
-        Actions are unbounded Gaussian samples; the environment clips them to [-1, 1].
-        """
+    @torch.no_grad()
+    def act(self, obs: Obs) -> torch.Tensor:
+        """The deterministic action: the Gaussian's mean (B, action_dim), zero on padded dims."""
+        return self(obs)[0]
+
+    @torch.no_grad()
+    def sample(self, obs: Obs) -> dict[str, torch.Tensor]:
+        """A sampled action for a rollout: ``action`` (B, A) (unbounded Gaussian sample, zero on padded dims;
+        the environment clips it), ``log_prob`` (B,), ``value`` (B,), ``mean`` (B, A), ``log_std`` (B, A)."""
         mean, log_std, value = self(obs)
-        av = action_valid(obs["node_valid"], self.cfg.wrist_dim, self.cfg.n_prim)
-        action = mean if deterministic else (mean + log_std.exp() * torch.randn_like(mean)) * av
-        return action, gaussian_log_prob(mean, log_std, action, av), value
+        av = self.action_valid(obs)
+        action = (mean + log_std.exp() * torch.randn_like(mean)) * av
+        return dict(action=action, log_prob=gaussian_log_prob(mean, log_std, action, av), value=value, mean=mean,
+                    log_std=log_std)
 
     def evaluate(self, obs: Obs, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """log_prob (B,), entropy (B,), value (B,) of ``action`` (B, 6+3N), summed over valid action dims."""
         mean, log_std, value = self(obs)
-        av = action_valid(obs["node_valid"], self.cfg.wrist_dim, self.cfg.n_prim)
+        av = self.action_valid(obs)
         return gaussian_log_prob(mean, log_std, action, av), gaussian_entropy(log_std, av), value
 
 
@@ -139,11 +154,11 @@ def gaussian_kl(mean0: torch.Tensor, log_std0: torch.Tensor, mean1: torch.Tensor
 
 
 # ---------------------------------------------------------------------- cost accounting
-def parameter_count(cfg: MagcnConfig) -> int:
-    return sum(p.numel() for p in MAGCN(cfg).parameters())
+def parameter_count(cfg: MagcnConfig, contract: ControlContract = ControlContract()) -> int:
+    return sum(p.numel() for p in MAGCN(cfg, contract).parameters())
 
 
-def flops_per_graph(cfg: MagcnConfig, n_nodes: int = 20) -> int:
+def flops_per_graph(cfg: MagcnConfig, n_nodes: int = 20, contract: ControlContract = ControlContract()) -> int:
     """Analytic forward FLOPs (2 × multiply-adds) for one graph of ``n_nodes`` nodes.
 
     Counts every Linear (weights only) and the dense Â·(ZW) products (N² per output channel per layer),
@@ -151,14 +166,16 @@ def flops_per_graph(cfg: MagcnConfig, n_nodes: int = 20) -> int:
     (O(N·width) element-wise work) are left out.
     """
     n, p = n_nodes, (cfg.phys_out if cfg.use_physical else 0)
+    node_dim, global_dim = contract.observation.node_dim, contract.observation.global_dim
+    wrist_dim, n_prim = contract.action.wrist_dim, contract.action.n_prim
     macs = n * (cfg.phys_dim * cfg.phys_hidden + cfg.phys_hidden * cfg.phys_out) if cfg.use_physical else 0
-    ins = [cfg.node_dim, *cfg.gcn_widths[:-1]]
+    ins = [node_dim, *cfg.gcn_widths[:-1]]
     for l, (i, o) in enumerate(zip(ins, cfg.gcn_widths)):
         fuse = cfg.use_physical and (l == 0 or not cfg.early_fusion)
         macs += n * (i + (p if fuse else 0)) * o + n * n * o
     d = cfg.gcn_widths[-1]
-    macs += cfg.global_dim * cfg.global_hidden
-    macs += (cfg.global_hidden + d) * cfg.head_hidden + cfg.head_hidden * cfg.wrist_dim
-    macs += n * ((d + cfg.n_prim) * cfg.head_hidden + cfg.head_hidden * cfg.n_prim)
+    macs += global_dim * cfg.global_hidden
+    macs += (cfg.global_hidden + d) * cfg.head_hidden + cfg.head_hidden * wrist_dim
+    macs += n * ((d + n_prim) * cfg.head_hidden + cfg.head_hidden * n_prim)
     macs += (cfg.global_hidden + d) * cfg.value_hidden + cfg.value_hidden
     return 2 * macs

@@ -1,5 +1,8 @@
 """MAGCN architecture configuration and named presets.
 
+Input and output sizes are not here: they come from the control contract
+(:class:`dgz_cli.spec.contract.ControlContract`) the network is built for.
+
 ``paper`` follows Supp. "Policy Architecture (MAGCN)": 10 GCN layers (128, then 256 ×9), ReLU + LayerNorm,
 physical MLP 27→32→d_p with LeakyReLU, global MLP 16→256 LeakyReLU, wrist/node heads 128 LeakyReLU,
 value head 128 ReLU. d_p is not given in the paper; we use 32 (= the hidden size of φ_p).
@@ -17,8 +20,6 @@ from dgz_cli.spec.models import N_FEATURES
 class MagcnConfig(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    node_dim: int = Field(23, gt=0, description="node feature size (observe.NODE_DIM)")
-    global_dim: int = Field(16, gt=0, description="global feature size (observe.GLOBAL_DIM)")
     phys_dim: int = Field(N_FEATURES, gt=0, description="physical feature size (27)")
     phys_hidden: int = Field(32, gt=0, description="hidden size of the physical encoder φ_p")
     phys_out: int = Field(32, gt=0, description="physical embedding size d_p")
@@ -27,8 +28,6 @@ class MagcnConfig(BaseModel):
     head_hidden: int = Field(128, gt=0, description="hidden size of the wrist and node action heads")
     value_hidden: int = Field(128, gt=0, description="hidden size of the value head")
     init_log_std: float = Field(-0.5, description="initial log-std of the Gaussian policy (std ≈ 0.61)")
-    wrist_dim: int = Field(6, gt=0, description="wrist action size")
-    n_prim: int = Field(3, gt=0, description="primitives per node (FLEX, ABD, ROT)")
     use_physical: bool = Field(True, description="ablation: False drops E_p (no φ_p parameters)")
     early_fusion: bool = Field(False, description="ablation: concatenate E_p only at the first GCN layer")
     use_mask: bool = Field(True, description="ablation: False feeds zeros instead of the activation mask")

@@ -1,7 +1,3 @@
-"""PPO training pieces for graph policies. May import ``dgz_cli.policy`` (and ``dgz_cli.spec``)."""
-
-from dgz_cli.rl.ppo import PPO, PPOConfig
-from dgz_cli.rl.schedule import AdaptiveKLSchedule
-from dgz_cli.rl.storage import STATIC_KEYS, MiniBatch, RolloutStorage
-
-__all__ = ["PPO", "PPOConfig", "AdaptiveKLSchedule", "MiniBatch", "RolloutStorage", "STATIC_KEYS"]
+"""PPO training pieces for graph policies. May import ``dgz_cli.policy`` and ``dgz_cli.spec``, never the
+simulator: the runner receives its env from the composition root (the CLI). Import submodules directly
+(``dgz_cli.rl.ppo``, ``dgz_cli.rl.config``, …); this package imports nothing, so configs load without torch."""

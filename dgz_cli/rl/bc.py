@@ -20,11 +20,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from dgz_cli.policy.graph import action_valid, to_tensors
+from dgz_cli.policy.graph import to_tensors
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.storage import STATIC_KEYS
-from dgz_cli.sim.env import GraspEnv
-from dgz_cli.sim.scripted import ScriptedGrasp
 
 
 @dataclass
@@ -32,8 +30,8 @@ class Demonstrations:
     """T steps × B slots. ``steps[k]`` holds the per-step observation keys, ``static`` the per-slot ones."""
 
     static: dict[str, torch.Tensor]     # adjacency (B,N,N), physical (B,N,27), mask (B,N,3), node_valid (B,N)
-    nodes: torch.Tensor                 # (T, B, N, 23)
-    global_: torch.Tensor               # (T, B, 16)
+    nodes: torch.Tensor                 # (T, B, N, node_dim)
+    global_: torch.Tensor               # (T, B, global_dim)
     actions: torch.Tensor               # (T, B, A) scripted actions in [-1, 1]
     returns: torch.Tensor               # (T, B) discounted returns of the scaled rewards
     success_rate: float                 # of the episodes collected (by whoever acted)
@@ -55,9 +53,10 @@ class Demonstrations:
         return out
 
 
-def collect(env: GraspEnv, episodes: int, normalizer: ReturnNormalizer, gamma: float, seed: int,
+def collect(env, teacher, episodes: int, normalizer: ReturnNormalizer, gamma: float, seed: int,
             student: nn.Module | None = None) -> Demonstrations:
-    """Roll ``episodes`` whole episodes in every slot of ``env``, labelled with the scripted grasp's actions.
+    """Roll ``episodes`` whole episodes in every slot of ``env`` (a ``GraspEnv``), labelled with the actions
+    of ``teacher`` (``act(obs)`` / ``reset(mask)``, e.g. the scripted grasp of :mod:`dgz_cli.sim.scripted`).
 
     Without ``student`` the scripted grasp acts (plain behaviour cloning); with it the student's mean
     action is executed while the teacher still labels every visited state (DAgger: the clone then learns
@@ -65,19 +64,17 @@ def collect(env: GraspEnv, episodes: int, normalizer: ReturnNormalizer, gamma: f
     PPO starts from the same scale) and scales them.
     """
     obs = env.reset(seed)
-    teacher = ScriptedGrasp(env.N, env.grasp_offset, distance_clip=env.cfg.distance_clip)
     teacher.reset(None)
     first = to_tensors(obs)
     static = {k: first[k].clone() for k in STATIC_KEYS}
     nodes, glob, actions, rewards, dones = [], [], [], [], []
     successes: list[bool] = []
-    steps = episodes * env.cfg.episode_steps
+    steps = episodes * env.cfg.contract.episode.episode_steps
     for _ in range(steps):
         a = teacher.act(obs)  # the teacher follows the visited states, whoever acts
         executed = a
         if student is not None:
-            with torch.no_grad():
-                executed = student(to_tensors(obs))[0].numpy()
+            executed = student.act(to_tensors(obs)).numpy()
         nodes.append(torch.as_tensor(obs["nodes"], dtype=torch.float32).clone())
         glob.append(torch.as_tensor(obs["global"], dtype=torch.float32).clone())
         actions.append(torch.as_tensor(a, dtype=torch.float32))
@@ -110,7 +107,6 @@ def pretrain(model: nn.Module, demos: Demonstrations, *, epochs: int = 10, mini_
     """Regress the actor's mean onto the demonstrated actions (MSE over valid action dims) and the
     critic onto their returns; then set the exploration log-std to ``log_std`` if given.
     Returns the final epoch's mean action and value losses."""
-    wrist_dim, n_prim = model.cfg.wrist_dim, model.cfg.n_prim
     T, B = demos.actions.shape[:2]
     opt = torch.optim.Adam(model.parameters(), lr=learning_rate)
     gen = torch.Generator().manual_seed(seed)
@@ -124,7 +120,7 @@ def pretrain(model: nn.Module, demos: Demonstrations, *, epochs: int = 10, mini_
             t, b = idx // B, idx % B
             obs = demos.obs(t, b)
             mean, _, value = model(obs)
-            av = action_valid(obs["node_valid"], wrist_dim, n_prim).float()
+            av = model.action_valid(obs).float()
             action_loss = (((mean - demos.actions[t, b]) ** 2) * av).sum() / av.sum()
             value_loss = ((value - demos.returns[t, b]) ** 2).mean()
             loss = action_loss + value_coef * value_loss

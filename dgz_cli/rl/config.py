@@ -1,4 +1,5 @@
-"""Typed, frozen training configuration (`dgz train`); saved verbatim into every checkpoint."""
+"""Typed, frozen run configuration of `dgz train`: the one source of its defaults (the CLI reads them
+from here) and saved verbatim into every checkpoint."""
 
 from __future__ import annotations
 
@@ -6,27 +7,54 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
+
+
+class PPOConfig(BaseModel):
+    """Defaults follow the paper's Table S1 (γ 0.996, λ 0.95, ε 0.2, Adam 5e-4 with adaptive KL, grad-norm
+    0.5, 4 epochs × 4 mini-batches); the value-loss coefficient, entropy coefficient, desired KL and
+    advantage normalization are not given by the paper and follow rsl_rl."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    gamma: float = Field(0.996, ge=0, le=1)
+    lam: float = Field(0.95, ge=0, le=1)
+    clip_param: float = Field(0.2, gt=0, le=10)
+    learning_rate: float = Field(5e-4, gt=0, le=1)
+    schedule: Literal["adaptive", "fixed"] = "adaptive"
+    desired_kl: float = Field(0.01, gt=0, le=10)
+    min_lr: float = Field(1e-5, gt=0, le=1)
+    max_lr: float = Field(1e-2, gt=0, le=1)
+    max_grad_norm: float = Field(0.5, gt=0, le=1e3)
+    num_epochs: int = Field(4, gt=0, le=100)
+    num_mini_batches: int = Field(4, gt=0, le=1024)
+    value_loss_coef: float = Field(1.0, ge=0, le=1e3)
+    entropy_coef: float = Field(0.0, ge=0, le=10)
+    use_clipped_value_loss: bool = True
+    normalize_advantages: bool = True
+
 
 class TrainConfig(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    hands: tuple[str, ...] = ("allegro", "shadow", "schunk_svh", "ability")
+    hands: tuple[str, ...] = Field(("allegro", "shadow", "schunk_svh", "ability"), description="training hands")
     objects: str = Field("ycb45", description="ycb45, primitives, or comma-separated object names")
-    repeat: int = Field(3, ge=1, description="N_env = hands × objects × repeat (paper: 3)")
-    preset: str = "compact"
-    ablation: Literal["full", "no_physical", "early_fusion", "no_primitives", "no_mask"] = "full"
-    iterations: int = Field(100, ge=1)
-    steps_per_env: int = Field(130, ge=1, description="transitions per env per PPO update (paper: 130)")
+    repeat: int = Field(3, ge=1, le=100, description="N_env = hands × objects × repeat (paper: 3)")
+    preset: str = Field("compact", description="network size: compact (CPU) or paper")
+    ablation: Literal[ABLATIONS] = Field("full", description="Table I variant: " + ", ".join(ABLATIONS))
+    iterations: int = Field(100, ge=1, le=10**7, description="PPO updates")
+    steps_per_env: int = Field(130, ge=1, le=10**5, description="transitions per env per PPO update (paper: 130)")
     checkpoint_every: int = Field(5, ge=1, description="iterations between checkpoints")
-    seed: int = 0
-    threads: int = Field(2, ge=1, description="physics worker threads")
-    torch_threads: int = Field(1, ge=1, description="torch threads for the PPO update (rollouts always use 1)")
-    bc_episodes: int = Field(0, ge=0, description="behaviour-cloning warm start: scripted episodes per env before "
-                                                  "PPO (0 = from scratch, as in the paper)")
-    bc_epochs: int = Field(10, ge=1, description="epochs of the behaviour-cloning regression")
-    bc_dagger_rounds: int = Field(0, ge=0, description="DAgger rounds after the first fit: the clone acts, the "
-                                                       "scripted grasp labels, the data are aggregated and refit")
-    bc_log_std: float = Field(-1.5, description="exploration log-std set after behaviour cloning")
-    bc_learning_rate: float = Field(2e-5, gt=0, description="PPO's starting learning rate after behaviour cloning "
-                                    "(the adaptive-KL schedule adapts it; 5e-4 undoes the clone in a few steps)")
-    lift_weight: float = Field(0.0, ge=0, description="weight of r_lift (not in the paper; 0 = the paper's reward)")
+    seed: int = Field(0, ge=0, lt=2**32)
+    threads: int = Field(2, ge=1, le=256, description="physics worker threads")
+    torch_threads: int = Field(1, ge=1, le=256, description="torch threads for the PPO update (rollouts always use 1)")
+    bc_episodes: int = Field(0, ge=0, le=1000, description="behaviour-cloning warm start: scripted episodes per env "
+                                                           "before PPO (0 = from scratch, as in the paper)")
+    bc_epochs: int = Field(10, ge=1, le=1000, description="epochs of the behaviour-cloning regression")
+    bc_dagger_rounds: int = Field(0, ge=0, le=100, description="DAgger rounds after the first fit: the clone acts, "
+                                                               "the scripted grasp labels, the data are aggregated and refit")
+    bc_log_std: float = Field(-1.5, ge=-10, le=2, description="exploration log-std set after behaviour cloning")
+    bc_learning_rate: float = Field(2e-5, gt=0, le=1, description="PPO's starting learning rate after behaviour "
+                                    "cloning (the adaptive-KL schedule adapts it; 5e-4 undoes the clone in a few steps)")
+    lift_weight: float = Field(0.0, ge=0, le=1e3, description="weight of r_lift (not in the paper; 0 = the paper's reward)")
+    ppo: PPOConfig = PPOConfig()

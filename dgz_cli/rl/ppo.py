@@ -4,9 +4,10 @@ Defaults follow the paper's Table S1 (γ 0.996, λ 0.95, ε 0.2, Adam 5e-4 with 
 4 epochs × 4 mini-batches); the value-loss coefficient (1.0), entropy coefficient (0.0), desired KL (0.01)
 and advantage normalization are not given by the paper and follow rsl_rl.
 
-The policy is any ``nn.Module`` with ``forward(obs) -> (mean (B, A), log_std (B, A), value (B,))`` over
-the action layout of :mod:`dgz_cli.policy` (``cfg.wrist_dim`` wrist dims, then ``cfg.n_prim`` per node),
-e.g. :class:`dgz_cli.policy.MAGCN`. Log-probs, entropies and KLs are summed over valid action dims only.
+The policy is an ``nn.Module`` with ``forward(obs) -> (mean (B, A), log_std (B, A), value (B,))``,
+``sample(obs)`` (a rollout action and its statistics) and ``action_valid(obs)`` (B, A) over the control
+contract's action layout, e.g. :class:`dgz_cli.policy.MAGCN`. Log-probs, entropies and KLs are summed over
+valid action dims only.
 
 Typical loop::
 
@@ -25,33 +26,12 @@ from __future__ import annotations
 from typing import Literal
 
 import torch
-from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
-from dgz_cli.policy.graph import action_valid
 from dgz_cli.policy.magcn import gaussian_entropy, gaussian_kl, gaussian_log_prob
+from dgz_cli.rl.config import PPOConfig
 from dgz_cli.rl.schedule import AdaptiveKLSchedule
 from dgz_cli.rl.storage import RolloutStorage
-
-
-class PPOConfig(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    gamma: float = Field(0.996, ge=0, le=1)
-    lam: float = Field(0.95, ge=0, le=1)
-    clip_param: float = Field(0.2, gt=0)
-    learning_rate: float = Field(5e-4, gt=0)
-    schedule: Literal["adaptive", "fixed"] = "adaptive"
-    desired_kl: float = Field(0.01, gt=0)
-    min_lr: float = Field(1e-5, gt=0)
-    max_lr: float = Field(1e-2, gt=0)
-    max_grad_norm: float = Field(0.5, gt=0)
-    num_epochs: int = Field(4, gt=0)
-    num_mini_batches: int = Field(4, gt=0)
-    value_loss_coef: float = Field(1.0, ge=0)
-    entropy_coef: float = Field(0.0, ge=0)
-    use_clipped_value_loss: bool = True
-    normalize_advantages: bool = True
 
 
 class PPO:
@@ -76,8 +56,6 @@ class PPO:
         self.optimizer = torch.optim.Adam(policy.parameters(), lr=c.learning_rate)
         self.schedule = (AdaptiveKLSchedule(c.learning_rate, c.desired_kl, c.min_lr, c.max_lr)
                          if c.schedule == "adaptive" else None)
-        pc = getattr(policy, "cfg", None)
-        self.wrist_dim, self.n_prim = getattr(pc, "wrist_dim", 6), getattr(pc, "n_prim", 3)
 
     @property
     def learning_rate(self) -> float:
@@ -105,17 +83,10 @@ class PPO:
         if learning_rate is not None:
             self.set_learning_rate(float(learning_rate))
 
-    def _valid(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
-        return action_valid(obs["node_valid"], self.wrist_dim, self.n_prim)
-
-    @torch.no_grad()
     def act(self, obs: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-        """Sample actions for a rollout: action, log_prob, value, mean, log_std (keys match ``storage.add``)."""
-        mean, log_std, value = self.policy(obs)
-        av = self._valid(obs)
-        action = (mean + log_std.exp() * torch.randn_like(mean)) * av
-        return dict(action=action, log_prob=gaussian_log_prob(mean, log_std, action, av), value=value, mean=mean,
-                    log_std=log_std)
+        """Sample actions for a rollout (the policy's ``sample``): action, log_prob, value, mean, log_std
+        (keys match ``storage.add``)."""
+        return self.policy.sample(obs)
 
     @torch.no_grad()
     def value(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -142,7 +113,7 @@ class PPO:
         for _ in range(c.num_epochs):
             for mb in storage.mini_batches(c.num_mini_batches, c.normalize_advantages):
                 mean, log_std, value = self.policy(mb.obs)
-                av = self._valid(mb.obs)
+                av = self.policy.action_valid(mb.obs)
                 log_prob = gaussian_log_prob(mean, log_std, mb.actions, av)
                 entropy = gaussian_entropy(log_std, av).mean()
                 log_ratio = log_prob - mb.old_log_prob

@@ -17,20 +17,19 @@ import torch
 
 from dgz_cli.policy.graph import to_tensors
 from dgz_cli.policy.magcn import MAGCN
-from dgz_cli.policy.presets import get_preset
+from dgz_cli.policy.presets import MagcnConfig, get_preset
 from dgz_cli.rl import checkpoint
+from dgz_cli.rl.checkpoint import CheckpointMeta, NormalizerState
 from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
-from dgz_cli.rl.ppo import PPO, PPOConfig
+from dgz_cli.rl.ppo import PPO
 from dgz_cli.rl.storage import RolloutStorage
-from dgz_cli.sim.config import EnvConfig, RewardWeights
-from dgz_cli.sim.env import GraspEnv
-from dgz_cli.sim.objects import resolve_objects
-from dgz_cli.spec.catalog import resolve_spec
+from dgz_cli.spec.contract import ActionLayout, ControlContract
+from dgz_cli.spec.envconfig import EnvConfig, RewardWeights
 from dgz_cli.spec.errors import DgzError
-from dgz_cli.spec.io import atomic_write_bytes, load_spec
+from dgz_cli.spec.io import atomic_write_bytes
 
-ABLATIONS = {
+ABLATION_MODEL = {
     "full": dict(),
     "no_physical": dict(use_physical=False),
     "early_fusion": dict(early_fusion=True),
@@ -39,103 +38,76 @@ ABLATIONS = {
 }
 
 
-def model_config(cfg: TrainConfig):
-    return get_preset(cfg.preset).model_copy(update=ABLATIONS[cfg.ablation])
+def model_config(cfg: TrainConfig) -> MagcnConfig:
+    return get_preset(cfg.preset).model_copy(update=ABLATION_MODEL[cfg.ablation])
 
 
 def env_config(cfg: TrainConfig) -> EnvConfig:
-    return EnvConfig(action_mode="joint" if cfg.ablation == "no_primitives" else "primitive",
-                     reward=RewardWeights(lift=cfg.lift_weight))
-
-
-def build_model(meta_policy: dict) -> MAGCN:
-    from dgz_cli.policy.presets import MagcnConfig
-
-    return MAGCN(MagcnConfig.model_validate(meta_policy["model"]))
-
-
-def load_policy(directory: Path) -> tuple[MAGCN, dict]:
-    """A trained MAGCN from a checkpoint directory (no pickle)."""
-    tensors, meta = checkpoint.load(directory)
-    model = build_model(meta["policy"])
-    weights = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
-    try:
-        model.load_state_dict(weights)
-    except RuntimeError as exc:
-        raise DgzError(f"{directory}: weights do not match the checkpoint's model config ({str(exc).splitlines()[0]})",
-                       "the checkpoint is damaged or was written by another dgz version") from None
-    model.eval()
-    return model, meta
+    """The env settings a run config asks for (the composition root builds the env from them)."""
+    mode = "joint" if cfg.ablation == "no_primitives" else "primitive"
+    return EnvConfig(contract=ControlContract(action=ActionLayout(mode=mode)), reward=RewardWeights(lift=cfg.lift_weight))
 
 
 class Trainer:
-    def __init__(self, cfg: TrainConfig, out: Path, asset_root: str | None, resume: bool = False,
-                 log: Callable[[dict], None] | None = None, on_warm_start: Callable[[dict], None] | None = None) -> None:
-        self.cfg, self.out, self.log = cfg, Path(out), log or (lambda row: None)
+    """PPO on an env it is given (``GraspEnv`` or anything with its ``reset``/``step``/``B``/``action_dim``/
+    ``cfg``/``timing``/``instabilities``/``close``). ``training_hands`` maps each hand name to its spec's
+    sha256, recorded in every checkpoint."""
+
+    def __init__(self, cfg: TrainConfig, env, out: Path, training_hands: dict[str, str], resume: bool = False,
+                 log: Callable[[dict], None] | None = None, on_warm_start: Callable[[dict], None] | None = None,
+                 teacher_factory: Callable[[object], object] | None = None) -> None:
+        self.cfg, self.env, self.out, self.log = cfg, env, Path(out), log or (lambda row: None)
         self.on_warm_start = on_warm_start or (lambda stats: None)
+        self.teacher_factory = teacher_factory
+        self.training_hands = dict(training_hands)
         torch.manual_seed(cfg.seed)
-        self.spec_paths = [resolve_spec(h) for h in cfg.hands]
-        specs = [load_spec(p) for p in self.spec_paths]
-        objs = resolve_objects(cfg.objects, asset_root)
-        pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
-        self.env = GraspEnv(pairs, env_config(cfg), seed=cfg.seed, asset_root=asset_root, threads=cfg.threads,
-                            use_pen=cfg.ablation != "no_mask")
-        self.model = MAGCN(model_config(cfg))
-        self.ppo = PPO(self.model, PPOConfig())
+        self.model = MAGCN(model_config(cfg), env.cfg.contract)
+        self.ppo = PPO(self.model, cfg.ppo)
         self.storage: RolloutStorage | None = None
-        self.reward_norm = ReturnNormalizer(self.env.B, self.ppo.cfg.gamma)
+        self.reward_norm = ReturnNormalizer(self.env.B, cfg.ppo.gamma)
         self.iteration = 0
         self.history: list[dict] = []
         self.warm_start: dict | None = None  # behaviour-cloning statistics, once done
         self.git_revision = checkpoint.git_revision()
         if resume:
             self._resume()
-        elif (self.out / "checkpoint.yaml").exists():
+        elif (self.out / checkpoint.META_FILE).exists():
             raise DgzError(f"{self.out} already holds a run", "pass --resume to continue it, or choose another --out")
 
     # ------------------------------------------------------------------ checkpoints
-    def meta(self) -> dict:
-        return dict(
-            dgz_checkpoint=1,
-            iteration=self.iteration,
-            train=json.loads(self.cfg.model_dump_json()),
-            policy=dict(model=json.loads(model_config(self.cfg).model_dump_json()), preset=self.cfg.preset,
-                        ablation=self.cfg.ablation, action_mode=env_config(self.cfg).action_mode),
-            ppo=json.loads(self.ppo.cfg.model_dump_json()),
-            env=json.loads(self.env.cfg.model_dump_json()),
-            training_hands={p.stem: checkpoint.spec_hash(p) for p in self.spec_paths},
-            git_revision=self.git_revision,  # of the code this process started with
-            learning_rate=float(self.ppo.learning_rate),
-            reward_normalizer=self.reward_norm.state(),
-            last=self.history[-1] if self.history else None,
-            warm_start=self.warm_start,
-            privileged_inputs=["contact", "force"],  # observed in simulation, absent on hardware
-        )
+    def meta(self) -> CheckpointMeta:
+        return CheckpointMeta(
+            iteration=self.iteration, weights="model.safetensors", train=self.cfg, model=self.model.cfg,
+            env=self.env.cfg, training_hands=self.training_hands, git_revision=self.git_revision,
+            learning_rate=float(self.ppo.learning_rate), reward_normalizer=NormalizerState(**self.reward_norm.state()),
+            last=self.history[-1] if self.history else None, warm_start=self.warm_start)
 
     def save(self) -> None:
+        if not all(bool(torch.isfinite(p).all()) for p in self.model.parameters()):
+            raise DgzError(f"training diverged at iteration {self.iteration}: non-finite weights; not saved",
+                           f"resume from the last checkpoint in {self.out} with a smaller learning rate or reward weights")
         tensors = {f"model.{k}": v for k, v in self.model.state_dict().items()}
         tensors.update({f"optim.{k}": v for k, v in self.ppo.optimizer_tensors().items()})
+        atomic_write_bytes(self.out / "history.jsonl", "".join(json.dumps(r) + "\n" for r in self.history).encode())
         checkpoint.save(self.out, tensors, self.meta())
-        with open(self.out / "history.jsonl", "w") as fh:
-            fh.writelines(json.dumps(r) + "\n" for r in self.history)
 
     def _resume(self) -> None:
         tensors, meta = checkpoint.load(self.out)
-        saved = meta.get("policy", {}).get("model")
-        if saved != json.loads(model_config(self.cfg).model_dump_json()):
-            raise DgzError(f"{self.out}: the checkpoint's model ({meta.get('policy', {}).get('preset')}, "
-                           f"{meta.get('policy', {}).get('ablation')}) differs from the requested one",
-                           "resume with the same --preset/--ablation, or start a new --out")
+        if meta.model != self.model.cfg or meta.contract != self.env.cfg.contract:
+            raise DgzError(f"{self.out}: the checkpoint's model ({meta.train.preset}, {meta.train.ablation}) or control "
+                           "contract differs from the requested one",
+                           "resume with the same --preset/--ablation and env options, or start a new --out")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
         self.ppo.load_optimizer_tensors({k[6:]: v for k, v in tensors.items() if k.startswith("optim.")},
-                                        meta.get("learning_rate"))
-        self.iteration = int(meta["iteration"])
-        self.warm_start = meta.get("warm_start")
-        if meta.get("reward_normalizer"):
-            self.reward_norm.load(meta["reward_normalizer"])
+                                        meta.learning_rate)
+        self.iteration = meta.iteration
+        self.warm_start = meta.warm_start
+        if meta.reward_normalizer is not None:
+            self.reward_norm.load(meta.reward_normalizer.model_dump())
         hist = self.out / "history.jsonl"
         if hist.exists():
             self.history = [json.loads(line) for line in hist.read_text().splitlines() if line.strip()]
+            self.history = [r for r in self.history if r.get("iteration", 0) <= self.iteration]
         torch.manual_seed(self.cfg.seed + self.iteration)
 
     # ------------------------------------------------------------------ loop
@@ -169,8 +141,8 @@ class Trainer:
             torch.set_num_threads(1)
             self.model.eval()
             student = self.model if round_ > 0 else None
-            parts.append(bc.collect(self.env, cfg.bc_episodes, self.reward_norm, self.ppo.cfg.gamma,
-                                    cfg.seed + round_, student=student))
+            parts.append(bc.collect(self.env, self.teacher_factory(self.env), cfg.bc_episodes, self.reward_norm,
+                                    self.ppo.cfg.gamma, cfg.seed + round_, student=student))
             if student is not None:
                 clone_success.append(round(parts[-1].success_rate, 4))
             collect_s += time.perf_counter() - tc
@@ -203,9 +175,12 @@ class Trainer:
             if self.storage is None:
                 self.storage = RolloutStorage(self.cfg.steps_per_env, env.B, obs_t, env.action_dim, seed=self.cfg.seed)
             next_obs, reward, terminated, truncated, info = env.step(out["action"].numpy())
-            # the fixed-length episode end is a termination (no bootstrap); an unstable slot is truncated
             scaled = self.reward_norm(reward.astype(np.float64), terminated | truncated)
-            self.storage.add(obs_t, reward=scaled, terminated=terminated, truncated=truncated, **out)
+            final_value = None
+            if "final_obs" in info:  # truncated slots bootstrap from the value of their last observation
+                final_value = self.ppo.value(to_tensors({**obs_t, **info["final_obs"]}))
+            self.storage.add(obs_t, reward=scaled, terminated=terminated, truncated=truncated,
+                             final_value=final_value, **out)
             episodes += list(info["episode"].values())
             reward_sum += float(reward.mean())
             obs = next_obs

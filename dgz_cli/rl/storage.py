@@ -4,10 +4,10 @@ Tensors live on CPU (or ``device``). Keys in ``static_keys`` (per-slot constants
 physical features, ~70 % of an observation) are stored once per env instead of once per step; ``add``
 checks that they did not change.
 
-Episode ends: ``terminated`` → no bootstrap; ``truncated`` (and not terminated) → bootstrap with the
-value of the final observation, ``final_value`` (B,), if the caller has it, else with the value of the
-step's own observation (the rsl_rl approximation; the env resets a finished slot in place and returns the
-fresh observation, so the final one is not available from ``GraspEnv``).
+Episode ends (Gymnasium semantics): ``terminated`` → no bootstrap; ``truncated`` (the time limit or an
+instability, and not terminated) → bootstrap with ``final_value`` (B,), the value of the episode's last
+observation (``GraspEnv`` returns it in ``info["final_obs"]``, since it resets a finished slot in place), or
+with the value of the step's own observation when the caller has none (the rsl_rl approximation).
 """
 
 from __future__ import annotations

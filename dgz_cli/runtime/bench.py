@@ -1,4 +1,4 @@
-"""Loop-timing benchmark: the real control loop (20 Hz, scripted policy) against a hand's pty fake or the sim.
+"""Loop-timing benchmark: the real control loop (20 Hz, blind-close policy) against a hand's pty fake or the sim.
 
 ``run(hand, steps)`` → a JSON-able dict: mean period, p99 jitter (|period − nominal|), worst period,
 overruns and the mean time of one read and one write. Timing numbers depend on the machine; the
@@ -12,7 +12,8 @@ import time
 import numpy as np
 
 from dgz_cli.runtime.loop import RunConfig, Runner
-from dgz_cli.runtime.policy import ScriptedClosePolicy
+from dgz_cli.runtime.policy import ClosePolicy
+from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
 
 
 class _TimedDriver:
@@ -55,8 +56,9 @@ def run(hand: str = "revo2", steps: int = 200, rate_hz: float = 20.0) -> dict:
     try:
         with driver:
             timed = _TimedDriver(driver)
-            result = Runner(timed, spec, ScriptedClosePolicy(spec, close_steps=steps),
-                            RunConfig(rate_hz=rate_hz, grasp_steps=steps, lift_steps=0)).run()
+            contract = ControlContract(episode=EpisodeProtocol(control_hz=rate_hz, grasp_steps=steps, lift_steps=0,
+                                                               hold_s=0.0))
+            result = Runner(timed, spec, ClosePolicy(spec, contract, close_steps=steps), RunConfig(contract=contract)).run()
     finally:
         if fake is not None:
             fake.stop()

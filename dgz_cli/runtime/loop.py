@@ -1,9 +1,11 @@
 """The control loop: read → observe → policy → safety → write at a fixed rate, with a safe exit.
 
-Phases: ``ramp`` (slowly to the start pose, skipped in a dry run), ``grasp`` (the policy, 130 steps by
-default) and ``lift`` (a scripted wrist command along the arm's base +z while the fingers hold their
-targets). The Kalman-filtered wrist command goes to the arm interface each step (palm frame while the
-policy runs, base frame during the lift; the filter restarts when the lift begins); ``none`` only logs it.
+Phases: ``ramp`` (slowly to the start pose, skipped in a dry run), then the control contract's episode
+(:class:`~dgz_cli.spec.contract.EpisodeProtocol`, the one ``dgz eval`` runs): ``grasp``, ``lift`` and
+``hold`` steps at the contract's rate, the policy acting at every step, its actions clipped and scaled
+by the contract; during ``lift`` the arm also rises by ``lift_height / lift_steps`` per step along its
+base +z. The wrist command (palm frame) goes to the arm interface each step, Kalman-filtered on real arms
+(``wrist_filter``); ``none`` only logs it.
 Faults stop the loop at once: a device or arm fault or disconnect, a non-finite action, ``max_bus_errors``
 lost/garbled replies in a row, ``stale_reads`` repeated feedback frames while the hand is being moved,
 ``max_overruns`` late steps in a row, or a policy exception. At exit the arm holds first, then the hand
@@ -22,15 +24,14 @@ from dgz_cli.hw.arm import ArmInterface
 from dgz_cli.hw.driver import HandDriver
 from dgz_cli.hw.errors import TRANSIENT, HardwareError, StaleFeedback
 from dgz_cli.runtime.filters import KalmanCV
-from dgz_cli.runtime.mapping import MhMap
-from dgz_cli.runtime.policy import ProprioObservation, StepInput
+from dgz_cli.runtime.policy import ProprioObservation
 from dgz_cli.runtime.rate import InterruptGuard, RateLoop
 from dgz_cli.runtime.safety import SafetyConfig, SafetyFilter
 from dgz_cli.runtime.steplog import StepLogger
+from dgz_cli.runtime.types import StepInput
+from dgz_cli.spec.contract import ControlContract
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.models import HandSpec
-
-SCALES = (0.01, 0.015)  # wrist, fingers: what a normalized policy output of 1 means
 
 
 class LoopOverrun(DgzError):
@@ -43,12 +44,9 @@ class _StopRequested(Exception):
 
 @dataclass
 class RunConfig:
-    rate_hz: float = 20.0
-    grasp_steps: int = 130
-    lift_steps: int = 30
-    lift_command: tuple = (0.0, 0.0, 0.01, 0.0, 0.0, 0.0)  # wrist Δ per step while lifting (m, rad)
-    arm: str = "none"  # name only (for callers); the arm itself is Runner(arm=...)
+    contract: ControlContract = field(default_factory=ControlContract)  # rate, phases, scales: the policy's
     on_exit: str = "hold"
+    wrist_filter: bool = True  # Kalman-smooth the wrist command for a real arm (off on the MuJoCo backend)
     dry_run: bool = False
     max_bus_errors: int = 3
     stale_reads: int = 3
@@ -85,11 +83,12 @@ class Runner:
         self.builder = builder or getattr(policy, "observation_builder", None) or ProprioObservation()
         self.log = logger or StepLogger(None)
         self.guard = guard or InterruptGuard()
-        self.context = {"rate_hz": cfg.rate_hz, **(context or {})}
+        self.rate_hz = cfg.contract.episode.control_hz
+        self.context = {"rate_hz": self.rate_hz, **(context or {})}
         self.arm = arm or ArmInterface()
         self.clock, self.sleep = clock, sleep
-        self.mh = MhMap(spec)
-        self.kf = KalmanCV(6, 1.0 / cfg.rate_hz)
+        self.action_dim = cfg.contract.action.dim(len(spec.nodes))
+        self.kf = KalmanCV(cfg.contract.action.wrist_dim, 1.0 / self.rate_hz)
         self.res = RunResult()
         self._streak = self._stale = 0
         self._prev_fp = self._prev_written = None
@@ -151,7 +150,7 @@ class Runner:
                               "close other programs, or lower the rate")
 
     def _ramp(self, start_pose: np.ndarray) -> None:
-        safety, step = self.safety, self.cfg.ramp_speed / self.cfg.rate_hz
+        safety, step = self.safety, self.cfg.ramp_speed / self.rate_hz
         goal = np.clip(start_pose, safety.lo, safety.hi)
         n_max = int(np.ceil(np.max(np.abs(goal - safety.target)) / step)) + 1
         for k in range(n_max):
@@ -167,36 +166,26 @@ class Runner:
                 break
 
     def _episode(self) -> None:
-        cfg, safety = self.cfg, self.safety
-        last_action = np.zeros(self.mh.action_dim)
-        wrist_f = np.zeros(6)
-        lift = np.zeros(self.mh.action_dim)
-        lift[:6] = cfg.lift_command
-        scale = np.concatenate([np.full(6, SCALES[0]), np.full(3 * self.mh.n_nodes, SCALES[1])])
-        for k in range(cfg.grasp_steps + cfg.lift_steps):
+        cfg, safety, ep = self.cfg, self.safety, self.cfg.contract.episode
+        last_action = np.zeros(self.action_dim)
+        wrist = np.zeros(cfg.contract.action.wrist_dim)
+        for k in range(ep.episode_steps):
             if self.guard.stop_requested:
                 raise _StopRequested
             t0 = self.clock()
-            phase = "grasp" if k < cfg.grasp_steps else "lift"
-            if k == cfg.grasp_steps:
-                self.kf.reset()  # the lift command is in the base frame: do not blend it with palm-frame motion
+            phase = ep.phase(k)
             state = self._read()
-            if phase == "grasp":
-                obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist_f,
-                                                   self.arm.palm_pose()))
-                raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
-                if getattr(self.policy, "normalized_actions", False) and raw.shape == scale.shape:
-                    raw = raw * scale
-            else:
-                raw = lift
+            obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist, self.arm.palm_pose()))
+            raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
             cmd = safety.step(raw)
-            wrist_f = self.kf.update(cmd.wrist)
-            arm_log = {} if cfg.dry_run else self.arm.command(wrist_f, "palm" if phase == "grasp" else "base")
+            wrist = self.kf.update(cmd.wrist) if cfg.wrist_filter else cmd.wrist
+            lift = ep.lift_per_step() if phase == "lift" else 0.0
+            arm_log = {} if cfg.dry_run else self.arm.command(wrist, "palm", lift=lift)
             self._write(cmd.target)
-            last_action = self.mh.join(cmd.wrist, cmd.alpha)
+            last_action = cmd.action
             self.res.steps += 1
             self.res.target = cmd.target
-            self._tick(k, phase, t0, action=raw, wrist_cmd=cmd.wrist, wrist_filtered=wrist_f, arm=self.arm.name,
+            self._tick(k, phase, t0, action=raw, wrist_cmd=cmd.wrist, wrist_sent=wrist, lift=lift, arm=self.arm.name,
                        target=cmd.target, measured=None if state is None else state.q,
                        effort=None if state is None else state.effort, limited=cmd.limited, **arm_log)
 
@@ -205,7 +194,7 @@ class Runner:
         res, cfg = self.res, self.cfg
         immediate = False
         try:
-            self.safety = SafetyFilter(self.spec, self.driver.limits(), 1.0 / cfg.rate_hz, cfg.safety)
+            self.safety = SafetyFilter(self.spec, self.driver.limits(), cfg.contract, cfg.safety)
             first = self._read(required=True)
             self.safety.reset(first.q)
             self.builder.reset(self.spec, self.context)
@@ -214,12 +203,14 @@ class Runner:
             if not cfg.dry_run:
                 self.driver.enable()
                 self.arm.enable()
-            self.rate = RateLoop(cfg.rate_hz, self.clock, self.sleep)  # after enabling: that may take a while
+            self.rate = RateLoop(self.rate_hz, self.clock, self.sleep)  # after enabling: that may take a while
             if not cfg.dry_run and start_pose is not None:
                 self._ramp(np.asarray(start_pose, dtype=float))
             self._episode()
             res.ok, res.exit_code = True, 0
-            res.reason = f"completed {res.steps} steps ({cfg.grasp_steps} grasp + {cfg.lift_steps} lift)"
+            ep = cfg.contract.episode
+            res.reason = (f"completed {res.steps} steps ({ep.grasp_steps} grasp + {ep.lift_steps} lift + "
+                          f"{ep.hold_steps} hold)")
         except _StopRequested:
             res.exit_code, res.reason = 130, f"stopped by Ctrl-C after {res.steps} steps"
         except KeyboardInterrupt:

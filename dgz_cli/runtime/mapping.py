@@ -1,8 +1,9 @@
-"""M_h: per-node primitive actions → joint deltas, in the spec's own orders.
+"""M_h as index arrays in the spec's own orders, and the deploy start pose.
 
-An action is ``6 + 3·N_nodes`` numbers: the wrist command (Δp x, y, z in m; Δθ x, y, z in rad) followed by
-α, an (N_nodes, 3) array in ``spec.nodes`` order with columns FLEX, ABD, ROT, flattened row by row.
-For every actuated joint j (``spec.joints`` order): Δq_j = sign_j · α[node_j, primitive_j].
+The action layout and how a normalized action becomes joint targets are the control contract's
+(:mod:`dgz_cli.spec.contract`); :class:`MhMap` only lists, for every actuated joint (``spec.joints``
+order), its node (``spec.nodes`` order), primitive column (FLEX, ABD, ROT), sign, and its position
+among its node's joints (for the joint-mode ablation).
 """
 
 from __future__ import annotations
@@ -11,30 +12,19 @@ import numpy as np
 
 from dgz_cli.spec.models import PRIMITIVES, HandSpec
 
-WRIST_DIM = 6
-
 
 class MhMap:
     def __init__(self, spec: HandSpec) -> None:
         index = spec.node_index()
         self.n_nodes = len(spec.nodes)
-        self.node_ids = [n.id for n in spec.nodes]
         self.node = np.array([index[r.node] for r in spec.joints], dtype=int)
         self.prim = np.array([PRIMITIVES.index(r.primitive.value) for r in spec.joints], dtype=int)
         self.sign = np.array([r.sign for r in spec.joints], dtype=float)
-        self.mask = np.array([spec.activation_mask.get(n.id, [0, 0, 0]) for n in spec.nodes], dtype=float)
-        self.action_dim = WRIST_DIM + 3 * self.n_nodes
-
-    def split(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        a = np.asarray(action, dtype=float)
-        return a[:WRIST_DIM], a[WRIST_DIM:].reshape(self.n_nodes, 3)
-
-    def join(self, wrist: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        return np.concatenate([np.asarray(wrist, dtype=float), np.asarray(alpha, dtype=float).reshape(-1)])
-
-    def delta_q(self, alpha: np.ndarray) -> np.ndarray:
-        alpha = np.asarray(alpha, dtype=float).reshape(self.n_nodes, 3)
-        return self.sign * alpha[self.node, self.prim]
+        seen: dict[int, int] = {}
+        self.slot = np.zeros(len(self.node), dtype=int)
+        for j, n in enumerate(self.node):
+            self.slot[j] = seen.get(int(n), 0)
+            seen[int(n)] = self.slot[j] + 1
 
 
 def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None, base: np.ndarray | None = None) -> np.ndarray:

@@ -1,10 +1,8 @@
 """The trained policy's observation, built on hardware with the training env's own feature functions.
 
-Same layout as :meth:`dgz_cli.sim.env.GraspEnv._observe` for one hand (batch of 1, N nodes, L joints):
-``nodes`` (1, N, 23), ``global`` (1, 16), ``adjacency`` (1, N, N), ``physical`` (1, N, 27), ``mask``
-(1, N, 3), ``node_valid`` (1, N); static parts from :func:`dgz_cli.sim.scene.static_graph`, features from
-:mod:`dgz_cli.sim.observe` (``node_features``, ``global_features``, ``primitive_state``, ``projection``,
-``nearest_surface``, ``to_frame``, ``rotation_delta``). Where the env reads the simulator, this reads:
+The layout is the policy's control contract (batch of 1, N nodes, L joints), exactly as
+:meth:`dgz_cli.sim.env.GraspEnv._observe` builds it: static parts from :func:`dgz_cli.sim.scene.static_graph`,
+features from :mod:`dgz_cli.sim.observe`. Where the env reads the simulator, this reads:
 
 * θ: measured joint positions; θ̇: finite differences of successive readings (device time stamps).
 * node anchors and the palm frame: forward kinematics of the hand alone (:mod:`.kinematics`).
@@ -13,7 +11,7 @@ Same layout as :meth:`dgz_cli.sim.env.GraspEnv._observe` for one hand (batch of 
   *commanded* palm motion (the arm interface's ``palm_pose``; ``--arm none`` never moves the palm).
 * wrist velocity: the commanded palm motion per control period; object velocity: 0 (static object).
 * contact flags and forces: 0 — a real hand has no such sensors (privileged inputs, see ``trained.py``).
-* lift flag: 0 (the runtime stops the policy when the scripted lift begins).
+* lift flag: 1 from the first step after the grasp phase, as in the env.
 """
 
 from __future__ import annotations
@@ -23,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from dgz_cli.runtime.kinematics import HandKinematics
-from dgz_cli.runtime.policy import StepInput
+from dgz_cli.runtime.types import StepInput
+from dgz_cli.spec.contract import ControlContract
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.models import HandSpec
 
@@ -81,35 +80,40 @@ def load_object_points(path: Path) -> np.ndarray:
     return pts[::step]
 
 
+def grasp_offset_of(spec: HandSpec, asset_root: str | None = None) -> np.ndarray:
+    """(3,) palm centre → the open hand's node centroid, palm frame (the scripted grasp's aim point)."""
+    kin = HandKinematics.for_spec(spec, asset_root)
+    return kin.anchors_palm(kin.rest).mean(0)
+
+
 class HardwareObservation:
-    """Observation builder for a trained MAGCN (``reset(spec, context)`` / ``build(StepInput)``).
+    """Observation builder for a policy under ``contract`` (``reset(spec, context)`` / ``build(StepInput)``).
 
     ``context``: ``object_points`` (P, 3) palm frame at the start (required), ``rate_hz`` (control rate).
     """
 
-    def __init__(self, spec: HandSpec, distance_clip: float, force_scale: float, asset_root: str | None = None,
+    def __init__(self, spec: HandSpec, contract: ControlContract, asset_root: str | None = None,
                  kin: HandKinematics | None = None) -> None:
         from dgz_cli.sim import observe
         from dgz_cli.sim.scene import static_graph
 
-        self.ob, self.spec = observe, spec
+        self.ob, self.spec, self.contract = observe, spec, contract
         self.kin = kin or HandKinematics.for_spec(spec, asset_root)
-        self.distance_clip, self.force_scale = distance_clip, force_scale
         g = static_graph(spec)
         n = len(spec.nodes)
         self.static = {"adjacency": g["adjacency"][None], "physical": g["physical"][None], "mask": g["mask"][None],
                        "node_valid": np.ones((1, n), bool)}
-        self.finger, self.node_type = g["finger"][None], g["node_type"][None]
+        self.static_nodes = observe.static_features(g["finger"][None], g["node_type"][None], self.static["node_valid"])
         self.proj = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)[None]  # (1, 3N, L)
         self.n = n
 
     def reset(self, spec: HandSpec, context: dict) -> None:
         pts = context.get("object_points")
         if pts is None:
-            raise DgzError("a trained policy needs the object: no --object-points given", FORMAT_HINT)
+            raise DgzError("this policy needs the object: no --object-points given", FORMAT_HINT)
         self.cloud = np.asarray(pts, dtype=float).reshape(1, -1, 3)      # (1, P, 3) start palm frame
         self.center = self.cloud[0].mean(0)                               # (3,)
-        self.dt = 1.0 / float(context.get("rate_hz", 20.0))
+        self.dt = 1.0 / self.contract.episode.control_hz
         self.prev_q: np.ndarray | None = None
         self.prev_stamp = 0.0
         self.prev_p, self.prev_r = np.zeros(3), np.eye(3)
@@ -131,7 +135,7 @@ class HardwareObservation:
         return q, qd
 
     def build(self, step: StepInput) -> dict[str, np.ndarray]:
-        ob = self.ob
+        ob, layout = self.ob, self.contract.observation
         q, qd = self._joints(step)
         p, r = step.palm_pose if step.palm_pose is not None else (np.zeros(3), np.eye(3))
         nodes = (p + self.kin.anchors_palm(q) @ r.T)[None]               # (1, N, 3) start palm frame
@@ -141,10 +145,11 @@ class HardwareObservation:
         w_w = ob.rotation_delta(self.prev_r[None], rot) / self.dt
         self.prev_p, self.prev_r = p, r
         zeros3 = np.zeros((1, 3))
-        glob = ob.global_features(ob.to_frame((self.center - p)[None], rot), ob.to_frame(v_w, rot),
-                                  ob.to_frame(w_w, rot), zeros3, zeros3, np.zeros(1, bool))
+        glob = ob.global_features(layout, target=ob.to_frame((self.center - p)[None], rot), v_wrist=ob.to_frame(v_w, rot),
+                                  w_wrist=ob.to_frame(w_w, rot), v_obj=zeros3, w_obj=zeros3,
+                                  lift=np.array([step.k >= self.contract.episode.grasp_steps]))
         none = np.zeros((1, self.n))
-        x = ob.node_features(ob.to_frame(d, rot), ob.primitive_state(q[None], self.proj),
-                             ob.primitive_state(qd[None], self.proj), none > 0, none, self.finger, self.node_type,
-                             self.static["node_valid"], self.distance_clip, self.force_scale)
+        x = ob.node_features(layout, self.static["node_valid"], self.static_nodes, d=ob.to_frame(d, rot),
+                             theta=ob.primitive_state(q[None], self.proj), theta_dot=ob.primitive_state(qd[None], self.proj),
+                             contact=none > 0, force=none)
         return {"nodes": x, "global": glob, **self.static}

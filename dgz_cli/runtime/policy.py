@@ -1,61 +1,34 @@
-"""The policy interface the runtime drives, a scripted policy, and pluggable observation builders.
+"""Policies the runtime drives, and how ``--policy`` names them.
 
-A policy is any object with ``act(observation) -> np.ndarray`` of ``6 + 3·N_nodes`` numbers (see
-:mod:`dgz_cli.runtime.mapping`), optionally ``reset()``, ``privileged_inputs`` (a set of names; policies
-that need "contact" or "force" are refused on hardware unless explicitly allowed) and ``normalized_actions``
-(True when outputs are in [-1, 1] and must be multiplied by the action scales 0.01 wrist / 0.015 fingers).
-Load one by name (``scripted``), as a trained checkpoint (a folder, or a name under ``policies/``; see
-:mod:`dgz_cli.runtime.trained`) or by reference ``package.module:factory`` (called with the HandSpec). A
-policy that needs its own observations carries an ``observation_builder`` attribute (used instead of the
-default).
+Every policy outputs normalized actions in the control contract's layout (see :class:`.types.Policy`).
+
+* ``scripted``: the spec-only scripted grasp of :mod:`dgz_cli.sim.scripted` (the one ``dgz eval --policy
+  scripted`` runs), on the observation a real hand gives (:class:`.observation.HardwareObservation`, which
+  needs the object's points).
+* ``close``: a blind close (+FLEX on every active node for ``close_steps``, then hold) for bring-up without
+  an object.
+* a checkpoint folder or a name under ``policies/`` (:mod:`.trained`; torch is imported only then);
+* ``package.module:factory``, called with the HandSpec.
 """
 
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 
-from dgz_cli.hw.driver import HandState
-from dgz_cli.runtime.mapping import WRIST_DIM, MhMap
+from dgz_cli.runtime.types import StepInput, check_privileged
+from dgz_cli.spec.contract import ControlContract
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.models import HandSpec
 
-PRIVILEGED = frozenset({"contact", "force"})
-
-
-@runtime_checkable
-class Policy(Protocol):
-    def act(self, observation: Any) -> np.ndarray: ...
-
-
-@dataclass
-class StepInput:
-    """What an observation builder may use at step k."""
-
-    k: int
-    state: HandState | None      # None when this step's read failed (transient bus error)
-    target: np.ndarray           # current joint targets (rad, spec order)
-    last_action: np.ndarray      # the previous clipped action
-    wrist_command: np.ndarray    # the previous filtered wrist command
-    palm_pose: tuple[np.ndarray, np.ndarray] | None = None  # commanded palm pose in the start palm frame
-
-
-class ObservationBuilder(Protocol):
-    def reset(self, spec: HandSpec, context: dict) -> None: ...
-
-    def build(self, step: StepInput) -> Any: ...
+BUILTIN = ("scripted", "close")
 
 
 class ProprioObservation:
-    """Default builder: a dict of proprioception plus the grasp target point (object centroid, palm frame at
-    the start) if known.
-
-    Trained policies bring their own builder (same two methods) that assembles exactly the tensors the
-    network was trained on.
-    """
+    """Default builder for policies without their own: proprioception plus the grasp target point (object
+    centroid, palm frame at the start) if known."""
 
     def reset(self, spec: HandSpec, context: dict) -> None:
         self.spec = spec
@@ -69,59 +42,86 @@ class ProprioObservation:
                 "object_point": self.object_point}
 
 
-class ScriptedClosePolicy:
-    """Zero wrist command and +FLEX on every node at a constant rate for ``close_steps``, then hold (zeros)."""
+class ClosePolicy:
+    """No wrist motion and +FLEX at ``flex`` (normalized) on every node whose FLEX is active, for
+    ``close_steps`` steps, then zeros (hold)."""
 
-    name = "scripted"
+    name = "close"
     privileged_inputs = frozenset()
-    normalized_actions = False
 
-    def __init__(self, spec: HandSpec, rate: float = 0.01, close_steps: int = 130) -> None:
-        self.mh = MhMap(spec)
-        self.rate = rate
-        self.close_steps = close_steps
+    def __init__(self, spec: HandSpec, contract: ControlContract = ControlContract(), flex: float = 2.0 / 3.0,
+                 close_steps: int = 130) -> None:
+        act = contract.action
+        self.contract, self.flex, self.close_steps = contract, flex, close_steps
+        self.action_dim = act.dim(len(spec.nodes))
+        self.flex_cols = [act.wrist_dim + act.n_prim * i for i, n in enumerate(spec.nodes)
+                          if spec.activation_mask.get(n.id, [0, 0, 0])[0]]
         self.k = 0
 
     def reset(self) -> None:
         self.k = 0
 
     def act(self, observation: Any) -> np.ndarray:
-        a = np.zeros(self.mh.action_dim)
+        a = np.zeros(self.action_dim)
         if self.k < self.close_steps:
-            a[WRIST_DIM::3] = self.rate  # FLEX column of every node
+            a[self.flex_cols] = self.flex
         self.k += 1
         return a
 
 
-def privileged_needs(policy: Any) -> list[str]:
-    """The privileged inputs (sorted) a policy observes that a real hand cannot provide."""
-    return sorted(PRIVILEGED & set(getattr(policy, "privileged_inputs", ()) or ()))
+class ScriptedPolicy:
+    """The simulator's scripted grasp (:class:`dgz_cli.sim.scripted.ScriptedGrasp`) for one hand, acting on
+    the observation its builder gives (``observation_builder``: a :class:`HardwareObservation` on hardware,
+    the simulator's own observation on the MuJoCo backend)."""
+
+    name = "scripted"
+    privileged_inputs = frozenset()
+
+    def __init__(self, spec: HandSpec, grasp_offset: np.ndarray, contract: ControlContract, observation_builder) -> None:
+        from dgz_cli.sim.scripted import ScriptedGrasp
+
+        self.contract, self.observation_builder = contract, observation_builder
+        self.grasp = ScriptedGrasp(len(spec.nodes), np.asarray(grasp_offset, dtype=float).reshape(1, 3), contract)
+
+    def reset(self) -> None:
+        self.grasp.reset(None)
+
+    def act(self, observation: dict) -> np.ndarray:
+        return self.grasp.act(observation)[0].astype(float)
 
 
-def check_privileged(policy: Any, name: str, allow_privileged: bool = False) -> None:
-    needs = privileged_needs(policy)
-    if needs and not allow_privileged:
-        raise DgzError(f"policy '{name}' needs privileged inputs ({', '.join(needs)}) that a real hand "
-                       "does not provide",
-                       "deploy a student policy distilled without contact/force inputs (paper Supp. S2), or "
-                       "pass --allow-privileged to feed zeros instead (for tests; the policy may misbehave)")
+def load_policy(ref: str, spec: HandSpec, *, contract: ControlContract = ControlContract(), observation_builder=None,
+                grasp_offset: np.ndarray | None = None, allow_privileged: bool = False,
+                asset_root: str | None = None) -> Any:
+    """``scripted``, ``close``, a checkpoint folder or ``policies/`` name, or ``package.module:factory``.
 
+    ``contract``: what the built-in policies observe and output (a checkpoint brings its own).
+    ``observation_builder``: the builder to use instead of the hardware one (the MuJoCo backend passes the
+    simulator's observation, which has the privileged inputs, so no refusal applies then).
+    ``grasp_offset`` (3,): palm centre → open-hand node centroid, palm frame (the scripted grasp's aim);
+    computed from the hand's kinematics when None."""
+    simulated = observation_builder is not None
+    if ref == "close":
+        policy: Any = ClosePolicy(spec, contract, close_steps=contract.episode.grasp_steps)
+    elif ref == "scripted":
+        from dgz_cli.runtime.observation import HardwareObservation, grasp_offset_of
 
-def load_policy(ref: str, spec: HandSpec, allow_privileged: bool = False, asset_root: str | None = None) -> Any:
-    """``scripted``, a checkpoint folder or ``policies/`` name, or ``package.module:factory``."""
-    from dgz_cli.rl.checkpoint import resolve_checkpoint
-    from dgz_cli.runtime.trained import TrainedPolicy
-
-    checkpoint = None if ref == "scripted" else resolve_checkpoint(ref)
-    if ref == "scripted":
-        policy: Any = ScriptedClosePolicy(spec)
-    elif checkpoint is not None:
-        policy = TrainedPolicy(checkpoint, spec, ref, allow_privileged=allow_privileged, asset_root=asset_root)
+        builder = observation_builder or HardwareObservation(spec, contract, asset_root=asset_root)
+        offset = grasp_offset if grasp_offset is not None else grasp_offset_of(spec, asset_root)
+        policy = ScriptedPolicy(spec, offset, contract, builder)
     else:
+        from dgz_cli.rl.checkpoint import resolve_checkpoint
+
+        checkpoint = resolve_checkpoint(ref)
+        if checkpoint is not None:
+            from dgz_cli.runtime.trained import TrainedPolicy
+
+            return TrainedPolicy(checkpoint, spec, ref, allow_privileged=allow_privileged or simulated,
+                                 asset_root=asset_root, observation_builder=observation_builder)
         module, sep, attr = ref.partition(":")
         if not sep or not module or not attr:
-            raise DgzError(f"unknown policy '{ref}'", "use 'scripted', a checkpoint folder or a name under "
-                                                      "policies/ (e.g. dgz-cpu-first), or package.module:factory")
+            raise DgzError(f"unknown policy '{ref}'", "use 'scripted', 'close', a checkpoint folder or a name under "
+                                                      "policies/ (e.g. dgz-cpu-warmstart), or package.module:factory")
         try:
             factory = getattr(importlib.import_module(module), attr)
         except (ImportError, AttributeError) as exc:
@@ -130,5 +130,6 @@ def load_policy(ref: str, spec: HandSpec, allow_privileged: bool = False, asset_
         policy = factory(spec)
     if not callable(getattr(policy, "act", None)):
         raise DgzError(f"policy '{ref}' has no act(observation) method", "see docs/deploy.md (policies)")
-    check_privileged(policy, ref, allow_privileged)
+    if not simulated:
+        check_privileged(policy, ref, allow_privileged)
     return policy

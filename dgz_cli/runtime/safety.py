@@ -1,9 +1,11 @@
 """The safety filter between a policy and a hand.
 
-Per control step: reject a non-finite or wrongly shaped action; clip α to ±finger_clip (0.015 rad) and the
-wrist command to ±wrist_clip (0.01); map through M_h; cap every joint's change to
+Per control step: reject a non-finite or wrongly shaped action; clip it to [-1, 1] and scale it by the
+control contract (the same clip and scales as the simulator); map the finger part through M_h with the
+contract's :func:`~dgz_cli.spec.contract.finger_targets`, capping every joint's change to
 min(max_joint_step, velocity_limit·dt); integrate on the previous *target* (never the measured position);
-clip to the narrower of the spec's and the device's limits.
+clip to the narrower of the spec's and the device's limits. At the contract's scales the cap does not bind
+on the shipped hands (finger_scale 0.015 rad ≤ every cap), so the targets equal the simulator's.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dgz_cli.runtime.mapping import MhMap
+from dgz_cli.spec.contract import ControlContract, finger_targets
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.models import HandSpec
 
@@ -23,24 +26,22 @@ class UnsafeAction(DgzError):
 
 @dataclass(frozen=True)
 class SafetyConfig:
-    finger_clip: float = 0.015     # |α| per step, rad (paper: 0.015)
-    wrist_clip: float = 0.01       # |wrist command| per step (paper: 0.01)
     max_joint_step: float = 0.02   # rad per step, whatever the velocity limit says
 
 
 @dataclass
 class SafeCommand:
     target: np.ndarray       # joint targets, rad, spec order
-    wrist: np.ndarray        # clipped wrist command (6)
-    alpha: np.ndarray        # clipped α (N_nodes, 3)
+    wrist: np.ndarray        # wrist command (6), m and rad, palm frame
+    action: np.ndarray       # the normalized action after the [-1, 1] clip (action_dim,)
     dq: np.ndarray           # applied joint change
     limited: bool            # True if any clip, cap or limit changed the request
 
 
 class SafetyFilter:
-    def __init__(self, spec: HandSpec, device_limits: tuple[np.ndarray, np.ndarray] | None, dt: float,
+    def __init__(self, spec: HandSpec, device_limits: tuple[np.ndarray, np.ndarray] | None, contract: ControlContract,
                  cfg: SafetyConfig = SafetyConfig()) -> None:
-        self.cfg = cfg
+        self.cfg, self.contract = cfg, contract
         self.mh = MhMap(spec)
         self.names = [j.joint for j in spec.joints]
         lo = np.array([j.lower for j in spec.joints], dtype=float)
@@ -48,13 +49,15 @@ class SafetyFilter:
         if device_limits is not None:
             lo = np.maximum(lo, np.asarray(device_limits[0], dtype=float))
             hi = np.minimum(hi, np.asarray(device_limits[1], dtype=float))
-        bad = [n for n, a, b in zip(self.names, lo, hi) if a > b]
+        bad = [n for n, a, b in zip(self.names, lo, hi) if not a <= b]
         if bad:
             raise DgzError(f"joint(s) {bad}: the spec's and the device's limits do not overlap",
                            "check the channel offsets/signs in the hand file against the spec")
         self.lo, self.hi = lo, hi
+        dt = 1.0 / contract.episode.control_hz
         vel = np.array([j.velocity for j in spec.joints], dtype=float)
         self.cap = np.where(vel > 0, np.minimum(cfg.max_joint_step, vel * dt), cfg.max_joint_step)
+        self.action_dim = contract.action.dim(self.mh.n_nodes)
         self.target: np.ndarray | None = None
 
     def reset(self, q0) -> np.ndarray:
@@ -64,9 +67,10 @@ class SafetyFilter:
 
     def check(self, action) -> np.ndarray:
         a = np.asarray(action, dtype=float).reshape(-1)
-        if a.shape != (self.mh.action_dim,):
-            raise UnsafeAction(f"policy returned {a.size} numbers, expected {self.mh.action_dim} "
-                               f"(6 wrist + 3 × {self.mh.n_nodes} nodes)",
+        if a.shape != (self.action_dim,):
+            raise UnsafeAction(f"policy returned {a.size} numbers, expected {self.action_dim} "
+                               f"({self.contract.action.wrist_dim} wrist + {self.contract.action.n_prim} × "
+                               f"{self.mh.n_nodes} nodes)",
                                "the policy was built for another hand: load the one for this spec")
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
@@ -75,20 +79,23 @@ class SafetyFilter:
         return a
 
     def step(self, action) -> SafeCommand:
+        """One normalized action (action_dim,) → the joint targets and the wrist command to send."""
         if self.target is None:
             raise RuntimeError("SafetyFilter.reset() must be called first")
         a = self.check(action)
-        wrist, alpha = self.mh.split(a)
-        wrist_c = np.clip(wrist, -self.cfg.wrist_clip, self.cfg.wrist_clip)
-        alpha_c = np.clip(alpha, -self.cfg.finger_clip, self.cfg.finger_clip)
-        dq_req = self.mh.delta_q(alpha_c)
-        dq = np.clip(dq_req, -self.cap, self.cap)
-        target = np.clip(self.target + dq, self.lo, self.hi)
-        limited = bool(np.any(wrist_c != wrist) or np.any(alpha_c != alpha) or np.any(dq != dq_req)
-                       or np.any(target != self.target + dq))
-        dq_applied = target - self.target
+        act = self.contract.action
+        clipped = np.clip(a, -1.0, 1.0)
+        alpha = clipped[act.wrist_dim:].reshape(1, self.mh.n_nodes, act.n_prim)
+        row = lambda v: np.asarray(v)[None]  # noqa: E731 — one hand = a batch of one
+        target = finger_targets(row(self.target), alpha, row(self.mh.node), row(self.mh.prim), row(self.mh.sign),
+                                row(self.mh.slot), row(self.lo), row(self.hi), act, step_cap=row(self.cap))[0]
+        free = finger_targets(row(self.target), alpha, row(self.mh.node), row(self.mh.prim), row(self.mh.sign),
+                              row(self.mh.slot), row(np.full_like(self.lo, -np.inf)), row(np.full_like(self.hi, np.inf)),
+                              act)[0]
+        limited = bool(np.any(clipped != a) or np.any(target != free))
+        dq = target - self.target
         self.target = target
-        return SafeCommand(target.copy(), wrist_c, alpha_c, dq_applied, limited)
+        return SafeCommand(target.copy(), clipped[:act.wrist_dim] * act.wrist_scale, clipped, dq, limited)
 
     def approach(self, goal, max_step: float) -> np.ndarray:
         """One ramp step of the target toward ``goal`` (each joint by at most ``max_step``)."""

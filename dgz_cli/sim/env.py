@@ -3,13 +3,15 @@
 API (Gymnasium-style naming, arrays batched over B slots, padded to N nodes and L joints):
     obs = env.reset(seed)                            # dict of arrays, see ``observation``
     obs, reward, terminated, truncated, info = env.step(action)
-``action`` (B, 6 + 3N) in [-1, 1]: wrist (Δp in the palm frame f/l/n, Δθ increments of the wrist
-hinges about the palm's f, l, n axes) then (FLEX, ABD, ROT) per node; with ``action_mode="joint"``
-(the paper's w/o-primitives ablation) a node's three values are raw increments of its actuated
-joints in M_h order, no sign. Finger increments are scaled by 0.015 rad, wrist ones by 0.01 (m or rad).
-Episodes: ``grasp_steps`` policy steps, then ``lift_steps`` during which the wrist is also lifted by
-``lift_height``, then ``hold_steps`` holding; a slot that finishes is reset at once (its final
-statistics are in ``info["episode"]``). A MuJoCo instability resets only that slot and is counted.
+Observation and action layouts, scales, rates and phases are the control contract
+(``cfg.contract``, :mod:`dgz_cli.spec.contract`); the finger mapping is the contract's
+:func:`~dgz_cli.spec.contract.finger_targets`, shared with the deploy runtime. Wrist Δp is along the palm
+frame f/l/n, Δθ increments the wrist hinges about the palm's f, l, n axes. Episodes: ``grasp_steps``
+policy steps, then ``lift_steps`` during which the wrist is also lifted by ``lift_height``, then
+``hold_steps`` holding. A slot that finishes is reset at once; its final statistics are in
+``info["episode"]`` and its last observation (before the reset) in ``info["final_obs"]``.
+Gymnasium semantics: ``terminated`` marks a true terminal state (none in this task yet), ``truncated``
+the time limit or a MuJoCo instability (that slot alone is reset, and counted).
 """
 
 from __future__ import annotations
@@ -20,12 +22,13 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from dgz_cli.sim import observe
-from dgz_cli.sim.config import EnvConfig
 from dgz_cli.sim.gather import BatchGather
 from dgz_cli.sim.objects import ObjectModel
 from dgz_cli.sim.reward import TERMS, reward_terms, total
 from dgz_cli.sim.scene import build_scene, static_graph
 from dgz_cli.sim.slot import Slot, contact_table
+from dgz_cli.spec.contract import finger_targets
+from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.spec.models import HandSpec
 
 
@@ -55,6 +58,8 @@ class GraspEnv:
         self.t = np.zeros(self.B, dtype=np.int64)
         self.episodes = np.zeros(self.B, dtype=np.int64)
         self.targets = np.zeros((self.B, self.L))
+        self._dq = np.zeros((self.B, self.L))  # the last step's applied joint change and primitive actions (rewards)
+        self._alpha = np.zeros((self.B, self.N, self.cfg.contract.action.n_prim))
         self.wrist_target = np.zeros((self.B, 6))
         self.prev_palm = np.zeros((self.B, 3))
         self.prev_rot = np.tile(np.eye(3), (self.B, 1, 1))
@@ -88,7 +93,7 @@ class GraspEnv:
         self.limits = np.zeros((B, L, 2))
         self.proj = np.zeros((B, 3 * N, L))
         self.node_point = np.zeros((B, N, 3))
-        self.cloud = np.zeros((B, self.cfg.point_cloud, 3))
+        self.cloud = np.zeros((B, self.cfg.contract.observation.point_cloud, 3))
         for b, s in enumerate(self.slots):
             g = static_graph(s.spec)
             n, l = len(s.spec.nodes), s.n_joints
@@ -137,7 +142,7 @@ class GraspEnv:
 
     @property
     def action_dim(self) -> int:
-        return 6 + 3 * self.N
+        return self.cfg.contract.action.dim(self.N)
 
     # ---------------------------------------------------------------- reset
     def reset(self, seed: int | None = None) -> dict[str, np.ndarray]:
@@ -171,35 +176,37 @@ class GraspEnv:
 
     # ---------------------------------------------------------------- step
     def step(self, action: np.ndarray):
+        """action (B, action_dim) normalized → (obs, reward (B,), terminated (B,), truncated (B,), info)."""
         t_start = time.perf_counter()
-        cfg, B = self.cfg, self.B
-        a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), -1.0, 1.0)
-        wrist, fingers = a[:, :6], a[:, 6:]
-        alpha = fingers.reshape(B, self.N, 3) * self.node_valid[..., None]
-        if cfg.action_mode == "primitive":
-            gathered = alpha[np.arange(B)[:, None], self.joint_node, self.joint_prim]
-            dq = self.joint_sign * gathered * cfg.finger_action_scale * self.joint_valid
-        else:
-            gathered = alpha[np.arange(B)[:, None], self.joint_node, self.joint_slot]
-            dq = gathered * cfg.finger_action_scale * self.joint_valid
-            alpha = np.zeros_like(alpha)  # no primitive axes, so no feasibility penalty
-        new_targets = np.clip(self.targets + dq, self.limits[..., 0], self.limits[..., 1])
-        dq = (new_targets - self.targets) * self.joint_valid
-        self.targets = new_targets
-        palm_rot = self.prev_rot  # palm frame at the last observation
-        dp_world = np.einsum("bij,bj->bi", palm_rot, wrist[:, :3] * cfg.wrist_action_scale)
-        lifting = (self.t >= cfg.grasp_steps) & (self.t < cfg.grasp_steps + cfg.lift_steps)
-        lift_world = np.zeros((B, 3))
-        lift_world[:, 2] = lifting * cfg.lift_height / max(1, cfg.lift_steps)
-        # the wrist slides move along the world axes; its hinges turn about the palm's f, l, n axes
-        delta = np.concatenate([dp_world, wrist[:, 3:] * cfg.wrist_action_scale], axis=1)
-        # A blocked wrist must not wind its target up (it would press with ever growing force), and a
-        # pushed wrist must not drag its target along: commands may not grow the lead beyond the max.
-        wq = self.buf["wq"]
-        bound = np.maximum(cfg.wrist_max_lead, np.abs(self.wrist_target - wq))
-        self.wrist_target = np.clip(self.wrist_target + delta, wq - bound, wq + bound)
-        self.wrist_target[:, :3] += lift_world  # the scripted lift is not capped
+        self.apply_action(action)
+        return self.advance(t_start)
 
+    def apply_action(self, action: np.ndarray) -> None:
+        """Turn normalized actions (B, action_dim) into joint and wrist targets through the contract:
+        clip to [-1, 1], fingers by :func:`finger_targets`, wrist by ``wrist_scale`` plus the protocol's lift."""
+        cfg, B = self.cfg, self.B
+        act, ep = cfg.contract.action, cfg.contract.episode
+        a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), -1.0, 1.0)
+        wrist, fingers = a[:, :act.wrist_dim], a[:, act.wrist_dim:]
+        alpha = fingers.reshape(B, self.N, act.n_prim) * self.node_valid[..., None]
+        new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,
+                                     self.joint_slot, self.limits[..., 0], self.limits[..., 1], act)
+        self.set_targets(new_targets, alpha if act.mode == "primitive" else np.zeros_like(alpha))
+        self.move_wrist(wrist * act.wrist_scale, self.lifting() * ep.lift_per_step())
+
+    def set_targets(self, targets: np.ndarray, alpha: np.ndarray | None = None) -> None:
+        """New finger joint targets (B, L) rad for the next step; ``alpha`` (B, N, n_prim) the normalized
+        primitive actions behind them (for r_pen; zeros if None)."""
+        self._dq = (targets - self.targets) * self.joint_valid
+        self._alpha = np.zeros((self.B, self.N, self.cfg.contract.action.n_prim)) if alpha is None else alpha
+        self.targets = targets
+
+    def advance(self, t_start: float | None = None):
+        """One control period of physics with the targets set since the last call, then the observation,
+        reward and episode bookkeeping; returns what :meth:`step` returns."""
+        t_start = time.perf_counter() if t_start is None else t_start
+        cfg, B, ep = self.cfg, self.B, self.cfg.contract.episode
+        dq, alpha = self._dq, self._alpha
         t_phys = time.perf_counter()
         ok = self._physics()
         physics = time.perf_counter() - t_phys
@@ -209,20 +216,20 @@ class GraspEnv:
         contact = force > 1e-6
         obs, d_world, obj_z = self._observe()
         rise = obj_z - self.z0
-        terms = reward_terms(d_world, contact, force / cfg.force_scale, dq, alpha, self.mask, self.node_valid,
-                             cfg.force_threshold, rise=rise, lifting=self.t > cfg.grasp_steps,
-                             lift_height=cfg.lift_height)
+        terms = reward_terms(d_world, contact, force / cfg.contract.observation.force_scale, dq, alpha, self.mask,
+                             self.node_valid, cfg.force_threshold, rise=rise, lifting=self.t > ep.grasp_steps,
+                             lift_height=ep.lift_height)
         reward = total(terms, cfg.reward, self.use_pen)
         reward[~ok] = 0.0
         self.max_rise = np.maximum(self.max_rise, rise)
-        risen = rise >= cfg.success_fraction * cfg.lift_height
-        holding = self.t > cfg.grasp_steps + cfg.lift_steps
+        risen = rise >= ep.success_fraction * ep.lift_height
+        holding = self.t > ep.grasp_steps + ep.lift_steps
         self.ok_hold &= np.where(holding, risen, True)
         self.ret += reward
         for k in TERMS:
             self.term_sums[k] += terms[k]
-        done = self.t >= cfg.episode_steps
-        success = done & self.ok_hold & (risen if cfg.hold_steps == 0 else True)
+        done = self.t >= ep.episode_steps
+        success = done & self.ok_hold & (risen if ep.hold_steps == 0 else True)
         info = {"reward_terms": terms, "unstable": ~ok, "success": success, "episode": {}}
         finished = np.nonzero(done | ~ok)[0]
         for b in finished:
@@ -233,11 +240,32 @@ class GraspEnv:
             self.instabilities += int(not ok[b])
             self._reset_slot(int(b))
         if len(finished):
+            info["final_obs"] = {k: v.copy() for k, v in obs.items() if k in ("nodes", "global")}
             fresh = self._observe()[0]
             for key in ("nodes", "global"):
                 obs[key][finished] = fresh[key][finished]
         self.timing["env_other_s"] += time.perf_counter() - t_start - physics
-        return obs, reward.astype(np.float32), done & ok, ~ok, info
+        terminated = np.zeros(B, bool)
+        return obs, reward.astype(np.float32), terminated, done | ~ok, info
+
+    def lifting(self) -> np.ndarray:
+        """(B,) bool: the slots whose next step is in the lift phase."""
+        ep = self.cfg.contract.episode
+        return (self.t >= ep.grasp_steps) & (self.t < ep.grasp_steps + ep.lift_steps)
+
+    def move_wrist(self, command: np.ndarray, lift: np.ndarray) -> None:
+        """Integrate the wrist targets: ``command`` (B, 6) physical (Δp along the palm axes at the last
+        observation, Δθ about them), then ``lift`` (B,) m along world +z (the protocol's lift, not capped)."""
+        palm_rot = self.prev_rot  # palm frame at the last observation
+        dp_world = np.einsum("bij,bj->bi", palm_rot, command[:, :3])
+        # the wrist slides move along the world axes; its hinges turn about the palm's f, l, n axes
+        delta = np.concatenate([dp_world, command[:, 3:]], axis=1)
+        # A blocked wrist must not wind its target up (it would press with ever growing force), and a
+        # pushed wrist must not drag its target along: commands may not grow the lead beyond the max.
+        wq = self.buf["wq"]
+        bound = np.maximum(self.cfg.wrist_max_lead, np.abs(self.wrist_target - wq))
+        self.wrist_target = np.clip(self.wrist_target + delta, wq - bound, wq + bound)
+        self.wrist_target[:, 2] += lift
 
     def _physics(self) -> np.ndarray:
         """Step every slot one control period on the worker threads (MuJoCo releases the GIL); each slot
@@ -264,8 +292,8 @@ class GraspEnv:
     def _observe(self):
         """Observation from the batch buffers; returns (obs, node→surface world vectors, object z)."""
         cfg, buf = self.cfg, self.buf
+        layout, ep = cfg.contract.observation, cfg.contract.episode
         force = buf["force"]
-        contact = force > 1e-6
         B, N, L = self.B, self.N, self.L
         xpos, xmat = buf["xpos"], buf["xmat"].reshape(B, N + 2, 3, 3)
         q, qd = buf["q"], buf["qd"][:, :L]
@@ -273,24 +301,22 @@ class GraspEnv:
         nodes, palm_pos, palm_rot = self._frames()
         d_world = observe.nearest_surface(nodes, obj_pos, obj_rot, self.cloud, self.cloud_pre)
         d_world *= self.node_valid[..., None]
-        dt = 1.0 / cfg.control_hz
+        dt = 1.0 / ep.control_hz
         v_w = (palm_pos - self.prev_palm) / dt
         w_w = observe.rotation_delta(self.prev_rot, palm_rot) / dt
         self.prev_palm, self.prev_rot = palm_pos, palm_rot
         # the cloud's centroid: R · Σp / P (the same up to rounding as averaging the rotated points)
         center = obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1]
-        lift = self.t >= cfg.grasp_steps
         glob = observe.global_features(
-            observe.to_frame(center - palm_pos, palm_rot), observe.to_frame(v_w, palm_rot),
-            observe.to_frame(w_w, palm_rot), observe.to_frame(obj_vel[:, :3], palm_rot),
-            observe.to_frame(np.einsum("bij,bj->bi", obj_rot, obj_vel[:, 3:]), palm_rot), lift)
-        x = observe.node_features(observe.to_frame(d_world, palm_rot), observe.primitive_state(q, self.proj),
-                                  observe.primitive_state(qd, self.proj), contact, force, self.finger,
-                                  self.node_type, self.node_valid, cfg.distance_clip, cfg.force_scale,
-                                  static=self.static_nodes)
-        obs = dict(nodes=x, global_=glob, adjacency=self.adjacency, physical=self.physical, mask=self.mask,
-                   node_valid=self.node_valid)
-        obs["global"] = obs.pop("global_")
+            layout, target=observe.to_frame(center - palm_pos, palm_rot), v_wrist=observe.to_frame(v_w, palm_rot),
+            w_wrist=observe.to_frame(w_w, palm_rot), v_obj=observe.to_frame(obj_vel[:, :3], palm_rot),
+            w_obj=observe.to_frame(np.einsum("bij,bj->bi", obj_rot, obj_vel[:, 3:]), palm_rot),
+            lift=self.t >= ep.grasp_steps)
+        x = observe.node_features(layout, self.node_valid, self.static_nodes, d=observe.to_frame(d_world, palm_rot),
+                                  theta=observe.primitive_state(q, self.proj), theta_dot=observe.primitive_state(qd, self.proj),
+                                  contact=force > 1e-6, force=force)
+        obs = dict(nodes=x, adjacency=self.adjacency, physical=self.physical, mask=self.mask, node_valid=self.node_valid)
+        obs["global"] = glob
         return obs, d_world, obj_pos[:, 2].copy()
 
     def close(self) -> None:

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dgz_cli.sim.config import EnvConfig
+from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import ObjectModel
 from dgz_cli.spec.models import HandSpec

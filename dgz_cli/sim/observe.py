@@ -1,22 +1,15 @@
 """Vectorized observation math over a batch of B slots, padded to N nodes / L joints / P points.
 
-Node features (paper Sec. III-C-1, Supp. S2), hand-centric (palm frame: f, l, n), fixed scales:
-    [d (3), θ (3), θ̇ (3), c (1), f (1), finger one-hot (6), node-type one-hot (6)]  → NODE_DIM = 23
-    d   node → nearest object-surface point, clipped to norm ≤ distance_clip, divided by it
-    θ   sign-corrected joint angles per primitive axis (mean over the node's joints), / π
-    θ̇   the same for velocities, / 10 rad/s, clipped to [-1, 1]
-    c   contact flag; f contact normal force / force_scale, clipped to [0, 5]
-Global features: [Δp_target (3) / 0.5 m, v_wrist (3) / 1 m/s, ω_wrist (3) / 5 rad/s,
-    v_obj (3) / 1 m/s, ω_obj (3) / 5 rad/s, lift flag (1)], clipped to [-1, 1]  → GLOBAL_DIM = 16
+The column layout and the normalization scales are the control contract's
+(:class:`dgz_cli.spec.contract.ObservationLayout`); this module only computes the blocks and writes
+them where the layout says. Hand-centric quantities are expressed in the palm frame (f, l, n).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-NODE_DIM = 23
-GLOBAL_DIM = 16
-COL_D, COL_THETA, COL_THETA_DOT, COL_CONTACT, COL_FORCE, COL_FINGER, COL_TYPE = 0, 3, 6, 9, 10, 11, 17
+from dgz_cli.spec.contract import ObservationLayout
 
 
 def node_positions(body_pos: np.ndarray, body_rot: np.ndarray, point: np.ndarray) -> np.ndarray:
@@ -74,21 +67,37 @@ def projection(joint_node: np.ndarray, joint_prim: np.ndarray, joint_sign: np.nd
     return w / np.maximum(counts, 1.0)
 
 
-def node_features(d: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray, contact: np.ndarray, force: np.ndarray,
-                  finger: np.ndarray, node_type: np.ndarray, valid: np.ndarray, distance_clip: float,
-                  force_scale: float, static: np.ndarray | None = None) -> np.ndarray:
-    """Assemble (B,N,NODE_DIM) float32 node features; padded nodes are zero. ``static`` (B,N,12): the
-    one-hot columns already masked (``static_features``), to pass when they do not change between calls.
-    Each block is computed in float64, masked and rounded to float32 column-wise (the same numbers as
-    concatenating in float64, masking and casting, without the (B,N,23) float64 temporaries)."""
+def node_features(layout: ObservationLayout, valid: np.ndarray, static: np.ndarray, **blocks: np.ndarray) -> np.ndarray:
+    """Assemble (B, N, node_dim) float32 node features; padded nodes are zero.
+
+    ``blocks`` are the raw per-node quantities by block name: ``d`` (B,N,3) m, ``theta`` / ``theta_dot``
+    (B,N,3) rad and rad/s, ``contact`` (B,N) bool, ``force`` (B,N) N; any other block of the layout is
+    passed already normalized, (B,N) or (B,N,w). ``static`` (B,N,12): the finger and node-type one-hots,
+    masked (:func:`static_features`). Each block is computed in float64, masked and rounded to float32
+    column-wise (the same numbers as concatenating in float64, masking and casting)."""
     v = valid[..., None]
-    x = np.empty(d.shape[:2] + (NODE_DIM,), dtype=np.float32)
-    x[..., COL_D:COL_THETA] = clip_norm(d, distance_clip) / distance_clip * v
-    x[..., COL_THETA:COL_THETA_DOT] = theta / np.pi * v
-    x[..., COL_THETA_DOT:COL_CONTACT] = np.clip(theta_dot / 10.0, -1.0, 1.0) * v
-    x[..., COL_CONTACT] = contact * valid
-    x[..., COL_FORCE] = np.clip(force / force_scale, 0.0, 5.0) * valid
-    x[..., COL_FINGER:] = static_features(finger, node_type, valid) if static is None else static
+    x = np.empty(valid.shape + (layout.node_dim,), dtype=np.float32)
+    for name, width in layout.node:
+        col = layout.node_col(name)
+        if name in ("finger", "node_type"):
+            continue
+        raw = blocks[name]
+        if name == "d":
+            val = clip_norm(raw, layout.distance_clip) / layout.distance_clip * v
+        elif name == "theta":
+            val = raw / np.pi * v
+        elif name == "theta_dot":
+            val = np.clip(raw / layout.velocity_scale, -1.0, 1.0) * v
+        elif name == "contact":
+            val = (raw * valid)[..., None]
+        elif name == "force":
+            val = (np.clip(raw / layout.force_scale, 0.0, 5.0) * valid)[..., None]
+        else:
+            val = (raw if raw.ndim == 3 else raw[..., None]) * v
+        x[..., col] = val
+    fc, tc = layout.node_col("finger"), layout.node_col("node_type")
+    x[..., fc] = static[..., :6]
+    x[..., tc] = static[..., 6:]
     return x
 
 
@@ -98,9 +107,24 @@ def static_features(finger: np.ndarray, node_type: np.ndarray, valid: np.ndarray
     return x.astype(np.float32)
 
 
-def global_features(dp: np.ndarray, v_w: np.ndarray, w_w: np.ndarray, v_o: np.ndarray, w_o: np.ndarray,
-                    lift: np.ndarray) -> np.ndarray:
-    g = np.concatenate([dp / 0.5, v_w, w_w / 5.0, v_o, w_o / 5.0, lift[:, None].astype(np.float64)], axis=-1)
+_GLOBAL_SCALE = {"target": None, "v_wrist": 1.0, "w_wrist": 5.0, "v_obj": 1.0, "w_obj": 5.0}
+
+
+def global_features(layout: ObservationLayout, **blocks: np.ndarray) -> np.ndarray:
+    """(B, global_dim) float32 from the raw global blocks by name: ``target`` (B,3) m, ``v_wrist`` /
+    ``v_obj`` (B,3) m/s, ``w_wrist`` / ``w_obj`` (B,3) rad/s, ``lift`` (B,) bool; any other block of the
+    layout already normalized, (B,) or (B,w). Everything is clipped to [-1, 1]."""
+    b = next(iter(blocks.values())).shape[0]
+    g = np.empty((b, layout.global_dim))
+    for name, width in layout.global_:
+        raw = np.asarray(blocks[name], dtype=np.float64)
+        if name == "target":
+            val = raw / layout.target_scale
+        elif name in _GLOBAL_SCALE:
+            val = raw / _GLOBAL_SCALE[name]
+        else:
+            val = raw.reshape(b, width)
+        g[:, layout.global_col(name)] = val.reshape(b, width)
     return np.clip(g, -1.0, 1.0).astype(np.float32)
 
 

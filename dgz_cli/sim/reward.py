@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dgz_cli.sim.config import RewardWeights
+from dgz_cli.spec.envconfig import RewardWeights
 
 TERMS = ("dis", "contact", "force", "reg", "pen", "lift")
 

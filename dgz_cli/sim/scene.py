@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dgz_cli.sim.config import EnvConfig
+from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.sim.objects import ObjectModel, object_spec, surface_points
 from dgz_cli.spec.catalog import resolve_urdf
 from dgz_cli.spec.kinematics import ForwardKinematics, palm_axes, to_frame
@@ -121,7 +121,7 @@ def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str
     mount = NOMINAL_PALM @ palm_axes_w.T  # palm down, finger axis along world +x
     world = mujoco.MjSpec()
     world.modelname = f"dgz_{spec.name}_{obj.name}"
-    world.option.timestep = cfg.physics_dt
+    world.option.timestep = cfg.contract.episode.physics_dt
     world.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     world.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC  # elliptic cones + high impratio: grasps slip less
     world.option.impratio = cfg.impratio
@@ -217,7 +217,7 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         object_body=obj_body,
         object_qadr=int(model.jnt_qposadr[obj_j]),
         object_dadr=int(model.jnt_dofadr[obj_j]),
-        cloud=surface_points(model, obj_body, cfg.point_cloud, seed),
+        cloud=surface_points(model, obj_body, cfg.contract.observation.point_cloud, seed),
         rest_q=rest_q,
         palm_axes_w=palm_axes_w,
         palm_center_w=palm_center_w,

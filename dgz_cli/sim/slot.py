@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dgz_cli.sim.config import EnvConfig
+from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.sim.objects import ObjectModel, quat_to_mat
 from dgz_cli.sim.scene import SceneIndex
 from dgz_cli.spec.models import HandSpec
@@ -38,7 +38,7 @@ class Slot:
         self.n_joints = len(index.hand_qadr)
         self.pair_node = contact_table(model, index) if pair_node is None else pair_node
         self._elliptic = model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
-        self._period = cfg.substeps * model.opt.timestep
+        self._period = cfg.contract.episode.substeps * model.opt.timestep
         self._ctrl = self.data.ctrl  # views into MjData stay valid: its arrays are never reallocated
         self._copies: tuple = ()
         self._force = np.zeros(len(index.node_body))
@@ -76,7 +76,7 @@ class Slot:
         d.ctrl[:] = 0.0
         d.ctrl[:3] = d.qpos[idx.wrist_qadr[:3]]
         d.ctrl[6:6 + self.n_joints] = idx.rest_q
-        mj.mj_step(m, d, nstep=max(1, int(round(cfg.settle_s / cfg.physics_dt))))
+        mj.mj_step(m, d, nstep=max(1, int(round(cfg.settle_s / cfg.contract.episode.physics_dt))))
         d.qvel[:] = 0.0
         obj_rot = d.xmat[idx.object_body].reshape(3, 3)
         center = d.xpos[idx.object_body] + (idx.cloud @ obj_rot.T).mean(0)
@@ -108,7 +108,7 @@ class Slot:
         d = self.data
         self._ctrl[:len(ctrl)] = ctrl
         expected = d.time + self._period
-        self.mj.mj_step(self.model, d, nstep=self.cfg.substeps)
+        self.mj.mj_step(self.model, d, nstep=self.cfg.contract.episode.substeps)
         return abs(d.time - expected) < 1e-6
 
     def gather(self) -> None:

@@ -19,16 +19,12 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from dgz_cli.spec.errors import UrdfError
+from dgz_cli.spec.models import rest_pose
 
 if TYPE_CHECKING:
     from dgz_cli.spec.models import HandSpec, MimicJoint, Palm
 
 _CACHE: dict[tuple, "HandKinematics"] = {}
-
-
-def rest_pose(lower: Sequence[float] | np.ndarray, upper: Sequence[float] | np.ndarray) -> np.ndarray:
-    """Rest pose (L,) for joint limits ``lower``, ``upper`` (L,): 0 clipped into [lower, upper]."""
-    return np.clip(0.0, np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
 
 
 def palm_axes(palm: Palm) -> np.ndarray:

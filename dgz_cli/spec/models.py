@@ -13,7 +13,6 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from dgz_cli.spec.kinematics import rest_pose
 
 SCHEMA_VERSION = 1
 PRIMITIVES = ("FLEX", "ABD", "ROT")
@@ -29,6 +28,12 @@ FEATURE_NAMES = (
 N_FEATURES = len(FEATURE_NAMES)  # 27
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+def rest_pose(lower, upper) -> np.ndarray:
+    """Rest pose (L,) for joint limits ``lower``, ``upper`` (L,): 0 clipped into [lower, upper] (the flat open
+    hand on the shipped hands). The one definition; onboarding, the sim, hw and the runtime use it."""
+    return np.clip(0.0, np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
 
 
 class Frozen(BaseModel):

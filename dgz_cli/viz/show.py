@@ -69,19 +69,18 @@ def _subtree_links(kin, root: str) -> set[str]:
     return links
 
 
-def render_png(spec: HandSpec, urdf_path: Path, out: Path) -> None:
-    """Render the front and side views of ``spec``'s graph over ``urdf_path``'s skeleton to ``out`` (PNG)."""
+def render_png(spec: HandSpec, kin, poser, out: Path) -> None:
+    """Render the front and side views of ``spec``'s graph over its URDF's skeleton to ``out`` (PNG).
+
+    ``kin``: the URDF's kinematic tree (``joints`` with ``parent``/``child``, ``children(link)``) and ``poser``
+    its posable compiled model (``rest()``, ``pose(q)``, ``link_pos``, ``link_rot``, ``joint_axis``), as
+    onboarding builds them (:mod:`dgz_cli.onboard`); the caller composes them, so viz stays a leaf layer."""
     import matplotlib
 
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-    from dgz_cli.onboard.compile import Poser, compile_model
-    from dgz_cli.onboard.urdf import load_kinematics
-
-    kin = load_kinematics(Path(urdf_path), spec.provenance.xacro_args)
-    poser = Poser(kin, compile_model(kin))
     poser.pose(poser.rest())
 
     palm = spec.palm

@@ -1,0 +1,200 @@
+"""The control contract: what a policy observes and does, at which rates, over which episode.
+
+This is the one home of those facts (design.md, "The control contract"). The simulator builds its
+observations and applies actions through it, every checkpoint saves it, and ``dgz eval`` and
+``dgz deploy`` read it back from the checkpoint, so a policy runs on hardware with the semantics it
+was trained with. Nothing else declares a column offset, an action scale, a rate or a phase length.
+
+Observation, batched over B graphs padded to N nodes (``nodes`` columns in ``ObservationLayout.node``
+order, ``global`` columns in ``ObservationLayout.global_`` order):
+    nodes      (B, N, node_dim)  float32
+    global     (B, global_dim)   float32
+    adjacency  (B, N, N)         float32   A[i, j] = 1 iff node i is the parent of node j
+    physical   (B, N, 27)        float32   URDF-derived priors (HandSpec features)
+    mask       (B, N, 3)         float32   activation mask (FLEX, ABD, ROT)
+    node_valid (B, N)            bool      False on padding
+Action (B, wrist_dim + n_prim·N), normalized to [-1, 1]: the wrist command (Δp along the palm axes
+f, l, n; Δθ about them) then (FLEX, ABD, ROT) per node in ``spec.nodes`` order. One unit is
+``wrist_scale`` (m or rad) on the wrist and ``finger_scale`` rad on a primitive.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+CONTRACT_VERSION = 1
+
+# (name, width) blocks. The one-hots have one column per FINGER_CLASSES / NODE_TYPES entry of
+# dgz_cli.spec.models (6 each).
+NODE_BLOCKS: tuple[tuple[str, int], ...] = (
+    ("d", 3),            # node → nearest object-surface point, palm frame, clipped to distance_clip, / distance_clip
+    ("theta", 3),        # sign-corrected joint angle per primitive axis (mean over the node's joints), / π
+    ("theta_dot", 3),    # the same for velocities, / velocity_scale, clipped to [-1, 1]
+    ("contact", 1),      # contact flag (privileged: no supported hand measures it)
+    ("force", 1),        # contact normal force / force_scale, clipped to [0, 5] (privileged)
+    ("finger", 6),       # finger-class one-hot
+    ("node_type", 6),    # node-type one-hot
+)
+GLOBAL_BLOCKS: tuple[tuple[str, int], ...] = (
+    ("target", 3),       # palm centre → grasp target (object cloud centroid), palm frame, / target_scale
+    ("v_wrist", 3),      # palm linear velocity, palm frame, m/s
+    ("w_wrist", 3),      # palm angular velocity, palm frame, / 5 rad/s
+    ("v_obj", 3),        # object linear velocity, palm frame, m/s (0 on hardware: static object)
+    ("w_obj", 3),        # object angular velocity, palm frame, / 5 rad/s (0 on hardware)
+    ("lift", 1),         # 1 after the grasp phase
+)
+PRIVILEGED_BLOCKS = frozenset({"contact", "force"})  # observed in simulation only
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+def _offsets(blocks: tuple[tuple[str, int], ...]) -> dict[str, slice]:
+    out, start = {}, 0
+    for name, width in blocks:
+        out[name] = slice(start, start + width)
+        start += width
+    return out
+
+
+class ObservationLayout(_Frozen):
+    """Column blocks of the node and global feature arrays, and their fixed normalization scales."""
+
+    node: tuple[tuple[str, int], ...] = NODE_BLOCKS
+    global_: tuple[tuple[str, int], ...] = Field(GLOBAL_BLOCKS, alias="global")
+    distance_clip: float = Field(0.3, gt=0, description="m: node → surface vectors are clipped to this norm and divided by it")
+    force_scale: float = Field(10.0, gt=0, description="N: contact forces are observed as f / force_scale, clipped to [0, 5]")
+    velocity_scale: float = Field(10.0, gt=0, description="rad/s: joint velocities are observed / this, clipped to [-1, 1]")
+    target_scale: float = Field(0.5, gt=0, description="m: the grasp-target vector is observed / this, clipped to [-1, 1]")
+    point_cloud: int = Field(256, ge=8, description="object surface points for the node → surface vectors")
+
+    model_config = ConfigDict(frozen=True, extra="forbid", populate_by_name=True)
+
+    @field_validator("node", "global_")
+    @classmethod
+    def _blocks(cls, v: tuple[tuple[str, int], ...]) -> tuple[tuple[str, int], ...]:
+        names = [n for n, _ in v]
+        if len(set(names)) != len(names) or any(w <= 0 for _, w in v):
+            raise ValueError("blocks need unique names and positive widths")
+        return v
+
+    @property
+    def node_dim(self) -> int:
+        return sum(w for _, w in self.node)
+
+    @property
+    def global_dim(self) -> int:
+        return sum(w for _, w in self.global_)
+
+    def node_col(self, name: str) -> slice:
+        """Columns of node block ``name`` (KeyError if the layout has no such block)."""
+        return _offsets(self.node)[name]
+
+    def global_col(self, name: str) -> slice:
+        return _offsets(self.global_)[name]
+
+    def has(self, name: str) -> bool:
+        return any(n == name for n, _ in self.node + self.global_)
+
+    @property
+    def privileged_inputs(self) -> tuple[str, ...]:
+        """Blocks a real hand cannot provide (sorted)."""
+        return tuple(sorted(PRIVILEGED_BLOCKS & {n for n, _ in self.node + self.global_}))
+
+
+class ActionLayout(_Frozen):
+    wrist_dim: int = Field(6, gt=0)
+    n_prim: int = Field(3, gt=0, description="primitives per node: FLEX, ABD, ROT")
+    mode: Literal["primitive", "joint"] = Field(
+        "primitive", description="'joint' (the paper's w/o-primitives ablation): a node's three values are raw "
+                                 "increments of its actuated joints in M_h order, no sign")
+    finger_scale: float = Field(0.015, gt=0, le=0.2, description="rad per unit of a finger action")
+    wrist_scale: float = Field(0.01, gt=0, le=0.2, description="m or rad per unit of a wrist action")
+
+    def dim(self, n_nodes: int) -> int:
+        return self.wrist_dim + self.n_prim * n_nodes
+
+    def scales(self, n_nodes: int) -> np.ndarray:
+        """(wrist_dim + n_prim·N,) physical units of one normalized action unit."""
+        return np.concatenate([np.full(self.wrist_dim, self.wrist_scale), np.full(self.n_prim * n_nodes, self.finger_scale)])
+
+
+class EpisodeProtocol(_Frozen):
+    """Rates and phases. The policy acts at every control step of every phase; during ``lift`` the wrist
+    is also raised by ``lift_height / lift_steps`` per step along world +z; success needs the object
+    ≥ success_fraction × lift_height above its start through the hold."""
+
+    physics_dt: float = Field(0.0025, gt=0, le=0.05, description="s (400 Hz)")
+    control_hz: float = Field(20.0, gt=0, le=1000)
+    grasp_steps: int = Field(120, ge=1)
+    lift_steps: int = Field(30, ge=0)
+    hold_s: float = Field(2.0, ge=0)
+    lift_height: float = Field(0.5, gt=0, le=2.0, description="m")
+    success_fraction: float = Field(0.8, ge=0, le=1.0)
+
+    @property
+    def substeps(self) -> int:
+        return int(round(1.0 / (self.control_hz * self.physics_dt)))
+
+    @property
+    def hold_steps(self) -> int:
+        return int(round(self.hold_s * self.control_hz))
+
+    @property
+    def episode_steps(self) -> int:
+        return self.grasp_steps + self.lift_steps + self.hold_steps
+
+    def phase(self, k: int) -> Literal["grasp", "lift", "hold"]:
+        """Phase of control step k (0-based)."""
+        if k < self.grasp_steps:
+            return "grasp"
+        return "lift" if k < self.grasp_steps + self.lift_steps else "hold"
+
+    def lift_per_step(self) -> float:
+        return self.lift_height / max(1, self.lift_steps)
+
+    @model_validator(mode="after")
+    def _rates(self) -> "EpisodeProtocol":
+        ratio = 1.0 / (self.control_hz * self.physics_dt)
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ValueError(f"the control period must be a whole number of physics steps "
+                             f"(1 / (control_hz · physics_dt) = {ratio:.4g})")
+        return self
+
+
+class ControlContract(_Frozen):
+    """Observation layout + action layout + episode protocol, versioned; saved in every checkpoint."""
+
+    version: Literal[1] = CONTRACT_VERSION
+    observation: ObservationLayout = ObservationLayout()
+    action: ActionLayout = ActionLayout()
+    episode: EpisodeProtocol = EpisodeProtocol()
+
+    @property
+    def privileged_inputs(self) -> tuple[str, ...]:
+        return self.observation.privileged_inputs
+
+
+def finger_targets(targets: np.ndarray, alpha: np.ndarray, joint_node: np.ndarray, joint_prim: np.ndarray,
+                   joint_sign: np.ndarray, joint_slot: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                   action: ActionLayout, step_cap: np.ndarray | float = math.inf) -> np.ndarray:
+    """New joint targets from per-node finger actions, the one mapping sim and runtime share.
+
+    targets (B, L) rad; alpha (B, N, n_prim) normalized finger actions (already clipped to [-1, 1]);
+    joint_node / joint_prim / joint_slot (B, L) int, joint_sign (B, L) ±1 (0 on padded joints);
+    lower / upper (B, L) rad. Each joint moves by sign · α[node, primitive] · finger_scale (or, in
+    ``joint`` mode, α[node, slot] · finger_scale), by at most ``step_cap`` rad, and stays in its limits.
+    Returns (B, L).
+    """
+    b = np.arange(targets.shape[0])[:, None]
+    if action.mode == "primitive":
+        dq = joint_sign * alpha[b, joint_node, joint_prim] * action.finger_scale
+    else:
+        dq = alpha[b, joint_node, joint_slot] * action.finger_scale * (joint_sign != 0)
+    dq = np.clip(dq, -step_cap, step_cap)
+    return np.clip(targets + dq, lower, upper)

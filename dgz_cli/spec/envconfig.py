@@ -1,0 +1,45 @@
+"""Typed, frozen configuration of the simulated grasping task (paper Sec. III-C, IV-A, Supp. S2).
+
+What a policy sees and does (observation and action layout, scales, rates, phases) is the control
+contract, :class:`dgz_cli.spec.contract.ControlContract`, held here as ``contract``. The rest is how the
+simulator realises the task: the start state, the controllers, the contact model and the reward. It lives
+in ``spec`` so that checkpoints (``rl``) can record it without importing the simulator.
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from dgz_cli.spec.contract import ControlContract
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class RewardWeights(_Frozen):
+    dis: float = Field(0.3, ge=0, le=1e3)
+    contact: float = Field(1.0, ge=0, le=1e3)
+    force: float = Field(0.5, ge=0, le=1e3)
+    reg: float = Field(1.5, ge=0, le=1e3)
+    pen: float = Field(0.3, ge=0, le=1e3)
+    lift: float = Field(0.0, ge=0, le=1e3,
+                        description="not in the paper (0 reproduces it): weight of r_lift, the object's rise "
+                                    "over the lift and hold phases as a fraction of lift_height")
+
+
+class EnvConfig(_Frozen):
+    """Defaults are the paper's protocol; lengths in m, times in s, angles in rad, forces in N."""
+
+    contract: ControlContract = ControlContract()
+    approach_distance: float = Field(0.3, gt=0, description="palm centre → object centre at reset")
+    approach_cone: float = Field(0.5, ge=0, description="max tilt (rad) of the approach direction from vertical")
+    settle_s: float = Field(0.3, ge=0, description="object settles on the table before the episode starts")
+    finger_kp: float = Field(3.0, gt=0, description="N·m/rad, the same for every hand")
+    joint_armature: float = Field(0.001, ge=0, description="kg·m², added to every hand joint (motor inertia)")
+    wrist_max_lead: float = Field(0.01, gt=0, description="wrist targets stay within this (m, rad) of the wrist joints")
+    impratio: float = Field(10.0, gt=0, description="MuJoCo frictional-to-normal impedance ratio (elliptic cones)")
+    wrist_kp_lin: float = Field(2000.0, gt=0)
+    wrist_kp_ang: float = Field(100.0, gt=0)
+    force_threshold: float = Field(1.0, ge=0, description="f0 of r_force in units of force_scale")
+    reward: RewardWeights = RewardWeights()
