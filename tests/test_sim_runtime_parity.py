@@ -13,6 +13,8 @@ from dgz_cli.runtime.steplog import read_log
 from dgz_cli.sim.evaluate import run_episodes
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ControlContract,
+                                   ObservationLayout, WristGuidance)
 from dgz_cli.spec.io import load_spec
 
 HAND, OBJECT, SEED = "dgz_tri", "sphere", 3
@@ -34,13 +36,18 @@ class Recorder:
         return a
 
 
-def _eval_actions(policy: str):
+LEVERS = ControlContract(  # issue 11's levers that act through the contract: all of them on
+    observation=ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS),
+    action=ActionLayout(finger_max_lead=0.05, mask_actions=True), guidance=WristGuidance(gain=0.05))
+
+
+def _eval_actions(policy: str, contract=None):
     from dgz_cli.cli.sim_cmd import _policy_factory
 
     make, meta = _policy_factory(policy)
     from dgz_cli.spec.envconfig import EnvConfig
 
-    cfg = meta.env if meta is not None else EnvConfig()
+    cfg = meta.env if meta is not None else EnvConfig(contract=contract or ControlContract())
     rec = {}
 
     def factory(env):
@@ -51,20 +58,21 @@ def _eval_actions(policy: str):
     return np.array(rec["p"].actions), records[0]
 
 
-def _deploy_actions(policy: str, tmp_path):
+def _deploy_actions(policy: str, tmp_path, contract=None):
     log = tmp_path / "run.jsonl"
     code = deploy_cmd.run("sim", None, policy, None, False, False, True, log, "hold", None,
                           Console(file=open(tmp_path / "out.txt", "w"), width=200), sim_hand=HAND, sim_object=OBJECT,
-                          seed=SEED)
+                          seed=SEED, contract=contract)
     assert code == 0
     header, steps, end = read_log(log)
     return np.array([s["action"] for s in steps if s["phase"] in ("grasp", "lift", "hold")]), header, end
 
 
-@pytest.mark.parametrize("policy", ["scripted", "dgz-cpu-warmstart"])
-def test_deploy_on_sim_reproduces_eval(policy, tmp_path):
-    expected, record = _eval_actions(policy)
-    got, header, end = _deploy_actions(policy, tmp_path)
+@pytest.mark.parametrize("policy,contract", [("scripted", None), ("dgz-cpu-warmstart", None), ("scripted", LEVERS)],
+                         ids=["scripted", "checkpoint", "scripted-guided-markov"])
+def test_deploy_on_sim_reproduces_eval(policy, contract, tmp_path):
+    expected, record = _eval_actions(policy, contract)
+    got, header, end = _deploy_actions(policy, tmp_path, contract)
     assert got.shape == expected.shape == (190, 6 + 3 * len(load_spec(resolve_spec(HAND)).nodes))
     np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
     assert np.ptp(expected[:, 6:], axis=0).max() > 0.1  # the fingers really move: not a vacuous comparison

@@ -171,6 +171,10 @@ def evaluate(
     csv_out: Optional[Path] = typer.Option(None, "--csv", help="write per-episode rows as CSV"),
     table: Optional[List[Path]] = typer.Option(None, "--table", help="print Table I from `--json` result files "
                                                "(repeatable) instead of evaluating"),
+    guidance: float = typer.Option(0.0, "--guidance", help="with --policy scripted: the contract's wrist guidance "
+                                   "gain (a checkpoint always runs under its own contract)"),
+    roll: str = typer.Option("uniform", "--roll", help="with --policy scripted: start roll, uniform or narrow "
+                             "(a checkpoint uses its own)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Success rate per hand and object under the protocol (lift, hold), with both cores."""
@@ -182,7 +186,7 @@ def evaluate(
         raise DgzError("no --hand given", "name one or more hands, e.g. --hand leap --hand inspire")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
-                                      asset_root, out))
+                                      asset_root, out, guidance=guidance, roll=roll))
 
 
 @bench_app.command("sim")

@@ -134,6 +134,7 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
         pol = load_policy(policy, spec, contract=contract, observation_builder=SimSceneObservation(scene),
                           grasp_offset=scene.env.grasp_offset[0], asset_root=asset_root)
         overrides, start, points = None, None, None  # the scene's reset pose is the protocol's start
+        grasp_offset = scene.env.grasp_offset[0]
         sim_clock = SimClock()
         clock, sleep = sim_clock, sim_clock.sleep
     else:
@@ -166,6 +167,11 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
             raise DgzError(f"policy '{policy}' needs the object: no --object-points given",
                            "pass --object-points FILE ((P, 3) points in metres in the palm frame at the start "
                            "pose) or a built-in object name such as sphere")
+        grasp_offset = None
+        if contract.guidance.gain > 0:
+            from dgz_cli.runtime.observation import grasp_offset_of
+
+            grasp_offset = grasp_offset_of(spec, asset_root)
         start, note = deploy_start_pose(spec, overrides, asset_root)
         if note:
             _warn(console, note)
@@ -209,7 +215,7 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
             timing = {} if clock is None else {"clock": clock, "sleep": sleep}
             with InterruptGuard() as guard:
                 result = Runner(driver, spec, pol, cfg_run, logger=logger, guard=guard, context=context,
-                                arm=arm_if, **timing).run(start)
+                                arm=arm_if, grasp_offset=grasp_offset, **timing).run(start)
     finally:
         logger.close()
         arm_if.close()

@@ -32,7 +32,8 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
-             json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console) -> int:
+             json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
+             guidance: float = 0.0, roll: str = "uniform") -> int:
     from dgz_cli.sim.evaluate import run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
@@ -49,7 +50,20 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         if seen:
             raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
                            f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
-    cfg = meta.env if meta is not None else EnvConfig()  # a policy is evaluated under the contract it was trained with
+    if meta is not None and (guidance != 0.0 or roll != "uniform"):
+        raise DgzError("--guidance and --roll set the scripted policy's env; a checkpoint runs under its own",
+                       "drop --guidance/--roll")
+    if roll not in ("uniform", "narrow"):
+        raise DgzError(f"--roll {roll!r} is not supported", "use --roll uniform or --roll narrow")
+    if meta is not None:
+        cfg = meta.env  # a policy is evaluated under the contract it was trained with
+    else:
+        from dgz_cli.spec.contract import ControlContract, WristGuidance
+
+        try:
+            cfg = EnvConfig(contract=ControlContract(guidance=WristGuidance(gain=guidance)), roll=roll)
+        except ValueError:
+            raise DgzError(f"--guidance {guidance}: the gain must be in [0, 1]", "e.g. --guidance 0.05") from None
     if meta is not None:
         from dgz_cli.rl.checkpoint import spec_hash
 
@@ -73,7 +87,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     summary = summarize(records)
     ep = cfg.contract.episode
     protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
-                    trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps)
+                    trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps,
+                    guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll)
     table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "
                         f"kept) and held {ep.hold_s} s; {trials} trials per object, seed {seed}")
     table.add_column("hand")

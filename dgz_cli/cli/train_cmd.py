@@ -88,8 +88,7 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
                 writer.add_scalar(k, v, row["iteration"])
         writer.flush()
         sr = "—" if row["success_rate"] is None else f"{row['success_rate']:.3f}"
-        terms = " ".join(f"{k[2:]} {row[k]:.2f}" for k in ("r_dis", "r_contact", "r_force", "r_reg", "r_pen", "r_lift")
-                         if row.get(k) is not None)
+        terms = " ".join(f"{k[2:]} {v:.2f}" for k, v in row.items() if k.startswith("r_") and v is not None)
         console.print(f"it {row['iteration']:4d}/{cfg.iterations}  {row['steps_per_s']:7.0f} steps/s  success {sr}  "
                       f"return {row['mean_return'] if row['mean_return'] is None else round(row['mean_return'], 1)}  "
                       f"{terms}  [dim]phys {row['physics_s']}s env {row['env_other_s']}s fwd {row['policy_forward_s']}s "

@@ -61,7 +61,10 @@ class MAGCN(nn.Module):
         self.node_head = _mlp(d + self.n_prim, cfg.head_hidden, self.n_prim, nn.LeakyReLU, 0.01)
         self.value_head = _mlp(cfg.global_hidden + d, cfg.value_hidden, 1, nn.ReLU, 1.0)
         self.log_std_wrist = nn.Parameter(torch.full((self.wrist_dim,), cfg.init_log_std))
-        self.log_std_prim = nn.Parameter(torch.full((self.n_prim,), cfg.init_log_std))
+        prim_shape = (len(NODE_TYPES), self.n_prim) if cfg.log_std_per_type else (self.n_prim,)
+        self.log_std_prim = nn.Parameter(torch.full(prim_shape, cfg.init_log_std))
+        self.type_cols = lay.node_col("node_type")
+        self.mask_actions = act.mask_actions
 
     # ------------------------------------------------------------------ encoder
     def encode(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor]:
@@ -98,14 +101,30 @@ class MAGCN(nn.Module):
         wrist = self.wrist_head(torch.cat([eg, self.wrist_embedding(obs, h)], dim=-1))
         alpha = self.node_head(torch.cat([h, m], dim=-1)) * valid.to(h.dtype)[..., None]
         mean = torch.cat([wrist, alpha.reshape(b, n * self.n_prim)], dim=-1)
-        av = action_valid(valid, self.wrist_dim, self.n_prim).to(h.dtype)
-        log_std = torch.cat([self.log_std_wrist, self.log_std_prim.repeat(n)]).expand(b, -1) * av
+        av = self.action_valid(obs).to(h.dtype)
+        mean = mean * av
+        if self.cfg.log_std_per_type:
+            prim = (obs["nodes"][..., self.type_cols] @ self.log_std_prim).reshape(b, n * self.n_prim)
+        else:
+            prim = self.log_std_prim.repeat(n).expand(b, -1)
+        log_std = torch.cat([self.log_std_wrist.expand(b, -1), prim], dim=-1) * av
         value = self.value_head(torch.cat([eg, masked_mean(h, valid)], dim=-1)).squeeze(-1)
         return mean, log_std, value
 
     def action_valid(self, obs: Obs) -> torch.Tensor:
-        """(B, action_dim) bool: the action dims of real (not padded) nodes."""
-        return action_valid(obs["node_valid"], self.wrist_dim, self.n_prim)
+        """(B, action_dim) bool: the wrist dims and the dims of real (not padded) nodes; with the contract's
+        ``mask_actions``, only the primitives the activation mask enables."""
+        av = action_valid(obs["node_valid"], self.wrist_dim, self.n_prim)
+        if self.mask_actions:
+            av = av.clone()
+            av[:, self.wrist_dim:] &= (obs["mask"] > 0).reshape(av.shape[0], -1)
+        return av
+
+    @torch.no_grad()
+    def clamp_log_std(self, minimum: float) -> None:
+        """Exploration floor: no log-std parameter below ``minimum``."""
+        self.log_std_wrist.clamp_(min=minimum)
+        self.log_std_prim.clamp_(min=minimum)
 
     @torch.no_grad()
     def act(self, obs: Obs) -> torch.Tensor:

@@ -31,6 +31,8 @@ class MagcnConfig(BaseModel):
     use_physical: bool = Field(True, description="ablation: False drops E_p (no φ_p parameters)")
     early_fusion: bool = Field(False, description="ablation: concatenate E_p only at the first GCN layer")
     use_mask: bool = Field(True, description="ablation: False feeds zeros instead of the activation mask")
+    log_std_per_type: bool = Field(False, description="one exploration log-std per (node type, primitive) "
+                                   "instead of one per primitive shared by all nodes")
 
     @field_validator("gcn_widths")
     @classmethod

@@ -32,6 +32,8 @@ class PPOConfig(BaseModel):
     entropy_coef: float = Field(0.0, ge=0, le=10)
     use_clipped_value_loss: bool = True
     normalize_advantages: bool = True
+    min_std: float = Field(0.0, ge=0, le=10, description="exploration floor: the policy's std is kept ≥ this "
+                           "after every step (GraspXL: 0.2); 0 = none")
 
 
 class TrainConfig(BaseModel):
@@ -57,4 +59,16 @@ class TrainConfig(BaseModel):
     bc_learning_rate: float = Field(2e-5, gt=0, le=1, description="PPO's starting learning rate after behaviour "
                                     "cloning (the adaptive-KL schedule adapts it; 5e-4 undoes the clone in a few steps)")
     lift_weight: float = Field(0.0, ge=0, le=1e3, description="weight of r_lift (not in the paper; 0 = the paper's reward)")
+    reward: Literal["paper", "graspxl"] = Field("paper", description="reward variant: the paper's text or "
+                                                "GraspXL's code (see docs/training.md)")
+    guidance_gain: float = Field(0.0, ge=0, le=1, description="wrist guidance gain toward the object centroid "
+                                 "(0 = off: the policy moves the wrist alone, as in the paper's text)")
+    roll: Literal["uniform", "narrow"] = Field("uniform", description="start roll: uniform, or closing across the "
+                                               "object's narrowest width")
+    observation: Literal["paper", "markov"] = Field("paper", description="observation layout: the paper's, or "
+                                                    "with finger PD error, guidance error and episode phase")
+    finger_max_lead: float | None = Field(None, gt=0, le=10, description="rad a finger target may lead its joint "
+                                          "(None = no cap)")
+    mask_actions: bool = Field(False, description="score only the primitives the activation mask enables")
+    log_std_per_type: bool = Field(False, description="exploration log-std per (node type, primitive)")
     ppo: PPOConfig = PPOConfig()

@@ -23,6 +23,7 @@ Typical loop::
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import torch
@@ -137,6 +138,8 @@ class PPO:
                 loss.backward()
                 grad_norm = nn.utils.clip_grad_norm_(self.policy.parameters(), c.max_grad_norm)
                 self.optimizer.step()
+                if c.min_std > 0:
+                    self.policy.clamp_log_std(math.log(c.min_std))
                 clip_frac = ((ratio - 1.0).abs() > c.clip_param).float().mean()
                 for k, v in zip(keys, (loss, surrogate, value_loss, entropy, kl, clip_frac, grad_norm)):
                     acc[k] += float(v.detach())

@@ -24,7 +24,8 @@ from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
 from dgz_cli.rl.storage import RolloutStorage
-from dgz_cli.spec.contract import ActionLayout, ControlContract
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ControlContract,
+                                   ObservationLayout, WristGuidance)
 from dgz_cli.spec.envconfig import EnvConfig, RewardWeights
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
@@ -39,13 +40,21 @@ ABLATION_MODEL = {
 
 
 def model_config(cfg: TrainConfig) -> MagcnConfig:
-    return get_preset(cfg.preset).model_copy(update=ABLATION_MODEL[cfg.ablation])
+    return get_preset(cfg.preset).model_copy(update=dict(ABLATION_MODEL[cfg.ablation],
+                                                         log_std_per_type=cfg.log_std_per_type))
 
 
 def env_config(cfg: TrainConfig) -> EnvConfig:
     """The env settings a run config asks for (the composition root builds the env from them)."""
     mode = "joint" if cfg.ablation == "no_primitives" else "primitive"
-    return EnvConfig(contract=ControlContract(action=ActionLayout(mode=mode)), reward=RewardWeights(lift=cfg.lift_weight))
+    layout = (ObservationLayout() if cfg.observation == "paper"
+              else ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS))
+    contract = ControlContract(observation=layout,
+                               action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
+                                                   mask_actions=cfg.mask_actions),
+                               guidance=WristGuidance(gain=cfg.guidance_gain))
+    return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
+                     roll=cfg.roll)
 
 
 class Trainer:
@@ -202,7 +211,7 @@ class Trainer:
                    success_rate=float(np.mean([e["success"] for e in episodes])) if episodes else None,
                    mean_return=float(np.mean([e["return_"] for e in episodes])) if episodes else None,
                    **{k: float(np.mean([e[k] for e in episodes])) if episodes else None
-                      for k in ("r_dis", "r_contact", "r_force", "r_reg", "r_pen", "r_lift", "max_rise")},
+                      for k in [f"r_{t}" for t in env.terms] + ["max_rise"]},
                    learning_rate=float(self.ppo.learning_rate),
                    **{k: float(v) for k, v in stats.items() if k != "learning_rate"})
         self.history.append(row)

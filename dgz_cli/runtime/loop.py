@@ -75,7 +75,10 @@ class RunResult:
 class Runner:
     def __init__(self, driver: HandDriver, spec: HandSpec, policy, cfg: RunConfig | None = None, builder=None,
                  logger: StepLogger | None = None, guard: InterruptGuard | None = None, context: dict | None = None,
-                 clock=time.monotonic, sleep=time.sleep, arm: ArmInterface | None = None) -> None:
+                 clock=time.monotonic, sleep=time.sleep, arm: ArmInterface | None = None,
+                 grasp_offset: np.ndarray | None = None) -> None:
+        """``grasp_offset`` (3,): palm centre → open-hand node centroid, palm frame (the wrist guidance's
+        guided point; needed only when the contract's guidance is on)."""
         cfg = cfg or RunConfig()
         if cfg.on_exit not in ("hold", "relax"):
             raise DgzError(f"--on-exit {cfg.on_exit!r} is not supported", "use hold or relax")
@@ -87,6 +90,7 @@ class Runner:
         self.context = {"rate_hz": self.rate_hz, **(context or {})}
         self.arm = arm or ArmInterface()
         self.clock, self.sleep = clock, sleep
+        self.grasp_offset = None if grasp_offset is None else np.asarray(grasp_offset, dtype=float)
         self.action_dim = cfg.contract.action.dim(len(spec.nodes))
         self.kf = KalmanCV(cfg.contract.action.wrist_dim, 1.0 / self.rate_hz)
         self.res = RunResult()
@@ -177,8 +181,9 @@ class Runner:
             state = self._read()
             obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist, self.arm.palm_pose()))
             raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
-            cmd = safety.step(raw)
-            wrist = self.kf.update(cmd.wrist) if cfg.wrist_filter else cmd.wrist
+            cmd = safety.step(raw, q=None if state is None else state.q)
+            command = cmd.wrist + self._guidance(obs, phase)
+            wrist = self.kf.update(command) if cfg.wrist_filter else command
             lift = ep.lift_per_step() if phase == "lift" else 0.0
             arm_log = {} if cfg.dry_run else self.arm.command(wrist, "palm", lift=lift)
             self._write(cmd.target)
@@ -188,6 +193,19 @@ class Runner:
             self._tick(k, phase, t0, action=raw, wrist_cmd=cmd.wrist, wrist_sent=wrist, lift=lift, arm=self.arm.name,
                        target=cmd.target, measured=None if state is None else state.q,
                        effort=None if state is None else state.effort, limited=cmd.limited, **arm_log)
+
+    def _guidance(self, obs, phase: str) -> np.ndarray:
+        """The contract's wrist guidance (zero when off), from the observation's target block: the same
+        computation as the simulator's (``GraspEnv.guidance``)."""
+        c = self.cfg.contract
+        if c.guidance.gain == 0.0:
+            return np.zeros(c.action.wrist_dim)
+        if self.grasp_offset is None or not isinstance(obs, dict) or "global" not in obs:
+            raise DgzError("the policy's contract guides the wrist, but its observation has no grasp target",
+                           "give the policy its own observation builder (trained checkpoints bring one)")
+        glob = np.asarray(obs["global"])[0]
+        target = glob[c.observation.global_col("target")].astype(np.float64) * c.observation.target_scale
+        return c.guidance.delta(target[None], self.grasp_offset[None], np.array([phase == "grasp"]))[0]
 
     # -- entry point -------------------------------------------------------------------------------
     def run(self, start_pose: np.ndarray | None = None) -> RunResult:

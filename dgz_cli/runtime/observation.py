@@ -106,6 +106,8 @@ class HardwareObservation:
         self.static_nodes = observe.static_features(g["finger"][None], g["node_type"][None], self.static["node_valid"])
         self.proj = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)[None]  # (1, 3N, L)
         self.n = n
+        lay = contract.observation
+        self.grasp_offset = grasp_offset_of(spec, asset_root) if lay.has("guide") else None
 
     def reset(self, spec: HandSpec, context: dict) -> None:
         pts = context.get("object_points")
@@ -145,11 +147,21 @@ class HardwareObservation:
         w_w = ob.rotation_delta(self.prev_r[None], rot) / self.dt
         self.prev_p, self.prev_r = p, r
         zeros3 = np.zeros((1, 3))
-        glob = ob.global_features(layout, target=ob.to_frame((self.center - p)[None], rot), v_wrist=ob.to_frame(v_w, rot),
+        target = ob.to_frame((self.center - p)[None], rot)
+        ep = self.contract.episode
+        extra_g, extra_n = {}, {}
+        if layout.has("guide"):
+            extra_g["guide"] = (target - self.grasp_offset[None]) / layout.target_scale
+        if layout.has("phase"):
+            extra_g["phase"] = np.array([step.k / ep.episode_steps])
+        if layout.has("pd_error"):
+            extra_n["pd_error"] = ob.pd_error(np.asarray(step.target, dtype=float)[None], q[None], self.proj,
+                                              layout.pd_error_scale)
+        glob = ob.global_features(layout, target=target, v_wrist=ob.to_frame(v_w, rot),
                                   w_wrist=ob.to_frame(w_w, rot), v_obj=zeros3, w_obj=zeros3,
-                                  lift=np.array([step.k >= self.contract.episode.grasp_steps]))
+                                  lift=np.array([step.k >= ep.grasp_steps]), **extra_g)
         none = np.zeros((1, self.n))
         x = ob.node_features(layout, self.static["node_valid"], self.static_nodes, d=ob.to_frame(d, rot),
                              theta=ob.primitive_state(q[None], self.proj), theta_dot=ob.primitive_state(qd[None], self.proj),
-                             contact=none > 0, force=none)
+                             contact=none > 0, force=none, **extra_n)
         return {"nodes": x, "global": glob, **self.static}

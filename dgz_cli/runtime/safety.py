@@ -78,8 +78,9 @@ class SafetyFilter:
                                "the policy diverged: check its inputs (observation scaling) and checkpoint")
         return a
 
-    def step(self, action) -> SafeCommand:
-        """One normalized action (action_dim,) → the joint targets and the wrist command to send."""
+    def step(self, action, q: np.ndarray | None = None) -> SafeCommand:
+        """One normalized action (action_dim,) → the joint targets and the wrist command to send; ``q`` (L,)
+        the measured joints, for the contract's finger lead cap."""
         if self.target is None:
             raise RuntimeError("SafetyFilter.reset() must be called first")
         a = self.check(action)
@@ -88,10 +89,11 @@ class SafetyFilter:
         alpha = clipped[act.wrist_dim:].reshape(1, self.mh.n_nodes, act.n_prim)
         row = lambda v: np.asarray(v)[None]  # noqa: E731 — one hand = a batch of one
         target = finger_targets(row(self.target), alpha, row(self.mh.node), row(self.mh.prim), row(self.mh.sign),
-                                row(self.mh.slot), row(self.lo), row(self.hi), act, step_cap=row(self.cap))[0]
+                                row(self.mh.slot), row(self.lo), row(self.hi), act, step_cap=row(self.cap),
+                                q=None if q is None else row(np.asarray(q, dtype=float)))[0]
         free = finger_targets(row(self.target), alpha, row(self.mh.node), row(self.mh.prim), row(self.mh.sign),
                               row(self.mh.slot), row(np.full_like(self.lo, -np.inf)), row(np.full_like(self.hi, np.inf)),
-                              act)[0]
+                              act, q=None if q is None else row(np.asarray(q, dtype=float)))[0]
         limited = bool(np.any(clipped != a) or np.any(target != free))
         dq = target - self.target
         self.target = target

@@ -24,12 +24,12 @@ import numpy as np
 from dgz_cli.sim import observe
 from dgz_cli.sim.gather import BatchGather
 from dgz_cli.sim.objects import ObjectModel
-from dgz_cli.sim.reward import TERMS, reward_terms, total
+from dgz_cli.sim.reward import GRASPXL_TERMS, TERMS, graspxl_terms, graspxl_total, reward_terms, total
 from dgz_cli.sim.scene import build_scene, static_graph
 from dgz_cli.sim.slot import Slot, contact_table
 from dgz_cli.spec.contract import finger_targets
 from dgz_cli.spec.envconfig import EnvConfig
-from dgz_cli.spec.models import HandSpec
+from dgz_cli.spec.models import NODE_TYPES, HandSpec
 
 
 class GraspEnv:
@@ -66,7 +66,8 @@ class GraspEnv:
         self.ok_hold = np.ones(self.B, bool)
         self.ret = np.zeros(self.B)
         self.max_rise = np.zeros(self.B)
-        self.term_sums = {k: np.zeros(self.B) for k in TERMS}
+        self.terms = GRASPXL_TERMS if cfg.reward_variant == "graspxl" else TERMS
+        self.term_sums = {k: np.zeros(self.B) for k in self.terms}
         B, N, L = self.B, self.N, self.L
         self.buf = dict(xpos=np.zeros((B, N + 2, 3)), xmat=np.tile(np.eye(3).reshape(9), (B, N + 2, 1)),
                         q=np.zeros((B, L)), qd=np.zeros((B, L + 6)), force=np.zeros((B, N)), wq=np.zeros((B, 6)))
@@ -75,6 +76,11 @@ class GraspEnv:
         self.palm_center = np.stack([s.idx.palm_center for s in self.slots])
         self.grasp_offset = np.stack([s.idx.grasp_offset for s in self.slots])  # (B, 3) palm frame
         self.z0 = np.zeros(B)  # settled object heights, set at each slot's reset
+        self._palm_velocity = np.zeros((B, 3))  # world, m/s, at the last observation
+        self.p0 = np.zeros((B, 3))  # settled object positions (the push limit)
+        self._global = np.zeros((B, cfg.contract.observation.global_dim), np.float32)  # the last observation's
+        tip = NODE_TYPES.index("fingertip")
+        self.node_weight = self.node_valid * np.where(self.node_type[..., tip] > 0, cfg.graspxl.tip_weight, 1.0)
 
     # ---------------------------------------------------------------- static padded arrays
     def _static(self) -> None:
@@ -151,7 +157,9 @@ class GraspEnv:
         self.episodes[:] = 0
         for b in range(self.B):
             self._reset_slot(b)
-        return self._observe()[0]
+        obs = self._observe()[0]
+        self._global = obs["global"]
+        return obs
 
     def _reset_slot(self, b: int) -> None:
         rng = np.random.default_rng([self.seed, b, int(self.episodes[b])])
@@ -170,6 +178,7 @@ class GraspEnv:
         s.gather()
         self.gather.assemble(slice(b, b + 1))
         self.z0[b] = s.z0
+        self.p0[b] = self.buf["xpos"][b, self.N]
         rot = self.buf["xmat"][b, self.N + 1].reshape(3, 3)
         self.prev_rot[b] = rot @ self.palm_axes[b]
         self.prev_palm[b] = self.buf["xpos"][b, self.N + 1] + rot @ self.palm_center[b]
@@ -190,9 +199,18 @@ class GraspEnv:
         wrist, fingers = a[:, :act.wrist_dim], a[:, act.wrist_dim:]
         alpha = fingers.reshape(B, self.N, act.n_prim) * self.node_valid[..., None]
         new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,
-                                     self.joint_slot, self.limits[..., 0], self.limits[..., 1], act)
+                                     self.joint_slot, self.limits[..., 0], self.limits[..., 1], act, q=self.buf["q"])
         self.set_targets(new_targets, alpha if act.mode == "primitive" else np.zeros_like(alpha))
-        self.move_wrist(wrist * act.wrist_scale, self.lifting() * ep.lift_per_step())
+        self.move_wrist(wrist * act.wrist_scale + self.guidance(self._global), self.lifting() * ep.lift_per_step())
+
+    def guidance(self, glob: np.ndarray) -> np.ndarray:
+        """(B, 6) the contract's wrist guidance from observations' global features (B, global_dim), the
+        same computation the deploy runtime makes from the observation it builds."""
+        c = self.cfg.contract
+        if c.guidance.gain == 0.0:
+            return np.zeros((self.B, 6))
+        target = glob[:, c.observation.global_col("target")].astype(np.float64) * c.observation.target_scale
+        return c.guidance.delta(target, self.grasp_offset, self.t < c.episode.grasp_steps)
 
     def set_targets(self, targets: np.ndarray, alpha: np.ndarray | None = None) -> None:
         """New finger joint targets (B, L) rad for the next step; ``alpha`` (B, N, n_prim) the normalized
@@ -216,27 +234,38 @@ class GraspEnv:
         contact = force > 1e-6
         obs, d_world, obj_z = self._observe()
         rise = obj_z - self.z0
-        terms = reward_terms(d_world, contact, force / cfg.contract.observation.force_scale, dq, alpha, self.mask,
-                             self.node_valid, cfg.force_threshold, rise=rise, lifting=self.t > ep.grasp_steps,
-                             lift_height=ep.lift_height)
-        reward = total(terms, cfg.reward, self.use_pen)
-        reward[~ok] = 0.0
         self.max_rise = np.maximum(self.max_rise, rise)
         risen = rise >= ep.success_fraction * ep.lift_height
         holding = self.t > ep.grasp_steps + ep.lift_steps
         self.ok_hold &= np.where(holding, risen, True)
-        self.ret += reward
-        for k in TERMS:
-            self.term_sums[k] += terms[k]
         done = self.t >= ep.episode_steps
         success = done & self.ok_hold & (risen if ep.hold_steps == 0 else True)
+        pushed = np.zeros(B, bool)
+        if cfg.reward_variant == "graspxl":
+            obj_pos, obj_vel = self.buf["xpos"][:, self.N], self.buf["qd"][:, self.L:self.L + 3]
+            pushed = (self.t <= ep.grasp_steps) & (np.linalg.norm(obj_pos - self.p0, axis=-1) > cfg.graspxl.push_limit)
+            palm_v = self._palm_velocity * (self.t > ep.grasp_steps)[:, None]
+            terms = graspxl_terms(d_world, contact, force / cfg.contract.observation.force_scale, self.node_weight,
+                                  obj_vel - palm_v, rise, self.t > ep.grasp_steps, success, pushed, ep.lift_height)
+            reward = graspxl_total(terms, cfg.graspxl)
+        else:
+            terms = reward_terms(d_world, contact, force / cfg.contract.observation.force_scale, dq, alpha, self.mask,
+                                 self.node_valid, cfg.force_threshold, rise=rise, lifting=self.t > ep.grasp_steps,
+                                 lift_height=ep.lift_height)
+            reward = total(terms, cfg.reward, self.use_pen)
+        reward[~ok] = 0.0
+        self.ret += reward
+        for k in self.terms:
+            self.term_sums[k] += terms[k]
+        terminated = pushed & ok & ~done
         info = {"reward_terms": terms, "unstable": ~ok, "success": success, "episode": {}}
-        finished = np.nonzero(done | ~ok)[0]
+        finished = np.nonzero(done | ~ok | terminated)[0]
         for b in finished:
-            info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], return_=float(self.ret[b]),
+            info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], pushed=bool(terminated[b]),
+                                           return_=float(self.ret[b]),
                                            steps=int(self.t[b]), max_rise=float(self.max_rise[b]), hand=self.slots[b].spec.name,
                                            object=self.slots[b].obj.name,
-                                           **{f"r_{k}": float(self.term_sums[k][b] / max(1, self.t[b])) for k in TERMS})
+                                           **{f"r_{k}": float(self.term_sums[k][b] / max(1, self.t[b])) for k in self.terms})
             self.instabilities += int(not ok[b])
             self._reset_slot(int(b))
         if len(finished):
@@ -245,8 +274,8 @@ class GraspEnv:
             for key in ("nodes", "global"):
                 obs[key][finished] = fresh[key][finished]
         self.timing["env_other_s"] += time.perf_counter() - t_start - physics
-        terminated = np.zeros(B, bool)
-        return obs, reward.astype(np.float32), terminated, done | ~ok, info
+        self._global = obs["global"]
+        return obs, reward.astype(np.float32), terminated, (done | ~ok) & ~terminated, info
 
     def lifting(self) -> np.ndarray:
         """(B,) bool: the slots whose next step is in the lift phase."""
@@ -307,14 +336,23 @@ class GraspEnv:
         self.prev_palm, self.prev_rot = palm_pos, palm_rot
         # the cloud's centroid: R · Σp / P (the same up to rounding as averaging the rotated points)
         center = obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1]
+        self._palm_velocity = v_w
+        target = observe.to_frame(center - palm_pos, palm_rot)
+        extra_g, extra_n = {}, {}
+        if layout.has("guide"):
+            extra_g["guide"] = (target - self.grasp_offset) / layout.target_scale
+        if layout.has("phase"):
+            extra_g["phase"] = self.t / ep.episode_steps
+        if layout.has("pd_error"):
+            extra_n["pd_error"] = observe.pd_error(self.targets, q, self.proj, layout.pd_error_scale)
         glob = observe.global_features(
-            layout, target=observe.to_frame(center - palm_pos, palm_rot), v_wrist=observe.to_frame(v_w, palm_rot),
+            layout, target=target, v_wrist=observe.to_frame(v_w, palm_rot),
             w_wrist=observe.to_frame(w_w, palm_rot), v_obj=observe.to_frame(obj_vel[:, :3], palm_rot),
             w_obj=observe.to_frame(np.einsum("bij,bj->bi", obj_rot, obj_vel[:, 3:]), palm_rot),
-            lift=self.t >= ep.grasp_steps)
+            lift=self.t >= ep.grasp_steps, **extra_g)
         x = observe.node_features(layout, self.node_valid, self.static_nodes, d=observe.to_frame(d_world, palm_rot),
                                   theta=observe.primitive_state(q, self.proj), theta_dot=observe.primitive_state(qd, self.proj),
-                                  contact=force > 1e-6, force=force)
+                                  contact=force > 1e-6, force=force, **extra_n)
         obs = dict(nodes=x, adjacency=self.adjacency, physical=self.physical, mask=self.mask, node_valid=self.node_valid)
         obs["global"] = glob
         return obs, d_world, obj_pos[:, 2].copy()

@@ -58,6 +58,12 @@ def primitive_state(q: np.ndarray, proj: np.ndarray) -> np.ndarray:
     return np.einsum("bkl,bl->bk", proj, q).reshape(b, -1, 3)
 
 
+def pd_error(targets: np.ndarray, q: np.ndarray, proj: np.ndarray, scale: float) -> np.ndarray:
+    """(B,N,3) the finger targets' lead over the joints per primitive axis, / scale, clipped to [-1, 1];
+    targets, q (B,L) rad; proj (B,N*3,L)."""
+    return np.clip(primitive_state(targets - q, proj) / scale, -1.0, 1.0)
+
+
 def projection(joint_node: np.ndarray, joint_prim: np.ndarray, joint_sign: np.ndarray, n_nodes: int) -> np.ndarray:
     """(N*3, L) matrix averaging sign-corrected joints onto (node, primitive) axes."""
     w = np.zeros((n_nodes * 3, len(joint_node)))

@@ -51,6 +51,7 @@ class SceneIndex:
     palm_axes_w: np.ndarray  # (3, 3) palm frame axes (f, l, n) in the wrist mount frame, open hand
     palm_center_w: np.ndarray  # (3,) palm centre in the wrist mount frame
     grasp_offset: np.ndarray  # (3,) palm centre → the open hand's node centroid, palm frame
+    closing_axis: np.ndarray  # (3,) unit, palm plane: the thumb tip → the other fingertips (l if no thumb)
 
 
 def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
@@ -222,7 +223,23 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         palm_axes_w=palm_axes_w,
         palm_center_w=palm_center_w,
         grasp_offset=palm_axes_w.T @ (anchors.mean(0) - palm_center_w),
+        closing_axis=closing_axis(spec, (anchors - palm_center_w) @ palm_axes_w),
     )
+
+
+def closing_axis(spec: HandSpec, anchors_palm: np.ndarray) -> np.ndarray:
+    """(3,) unit vector in the palm plane (n component 0) along which the open hand closes: from the thumb's
+    fingertip to the mean of the other fingertips; the lateral axis l when there is no thumb or no other
+    finger. ``anchors_palm`` (N, 3): node anchors in the palm frame."""
+    tips = [i for i, n in enumerate(spec.nodes) if n.type == "fingertip"]
+    thumb = [i for i in tips if spec.nodes[i].finger == "thumb"]
+    others = [i for i in tips if spec.nodes[i].finger != "thumb"]
+    if thumb and others:
+        v = anchors_palm[others].mean(0) - anchors_palm[thumb].mean(0)
+        v[2] = 0.0
+        if np.linalg.norm(v) > 1e-6:
+            return v / np.linalg.norm(v)
+    return np.array([0.0, 1.0, 0.0])
 
 
 def static_graph(spec: HandSpec) -> dict[str, np.ndarray]:

@@ -65,7 +65,8 @@ class ScriptedGrasp:
         action = np.zeros((b, act.dim(self.n_nodes)), dtype=np.float32)
         error = glob[:, self.target] * self.target_scale - self.offset  # object centre relative to the grasp point, m
         approach = np.stack([error[:, 0] * 20.0, error[:, 1] * 20.0, np.ones(b)], axis=1)
-        action[:, :3] = np.where(self.closing[:, None], 0.0, np.clip(approach, -1, 1))
+        if self.contract.guidance.gain == 0.0:  # with guidance on, the contract's guidance approaches
+            action[:, :3] = np.where(self.closing[:, None], 0.0, np.clip(approach, -1, 1))
         flex = np.zeros((b, self.n_nodes, act.n_prim), dtype=np.float32)
         is_wrist = nodes[:, :, self.col_wrist] > 0  # wrist flexion would tilt the palm away
         flex[:, :, 0] = obs["mask"][:, :, 0] * ~is_wrist

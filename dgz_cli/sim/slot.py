@@ -84,10 +84,13 @@ class Slot:
         # tilt of the approach within the cone (about the palm's f and l axes), any roll about n
         tilt, azim = cfg.approach_cone * np.sqrt(rng.random()), 2 * np.pi * rng.random()
         hinge = np.array([tilt * np.cos(azim), tilt * np.sin(azim), 2 * np.pi * rng.random()])
-        r_delta = np.eye(3)
-        for axis, angle in zip(self.hinge_axes, hinge):
-            r_delta = r_delta @ _axis_angle(axis, angle)
-        r_wrist = self.mount @ r_delta
+        if cfg.roll == "narrow":  # of evenly spaced rolls, the one closing across the object's narrowest width
+            pts = idx.cloud @ obj_rot.T
+            rolls = hinge[2] + 2 * np.pi * np.arange(cfg.roll_candidates) / cfg.roll_candidates
+            widths = [np.ptp(pts @ (self._wrist_rot(np.array([hinge[0], hinge[1], r])) @ self.hinge_axes.T
+                                    @ idx.closing_axis)) for r in rolls]
+            hinge[2] = rolls[int(np.argmin(widths))]
+        r_wrist = self._wrist_rot(hinge)
         u = -(r_wrist @ self.hinge_axes[2])  # from the object toward the palm: the palm normal points back
         pos = center + u * cfg.approach_distance - r_wrist @ idx.palm_center_w
         q0 = np.concatenate([pos - self.base, hinge])
@@ -96,6 +99,13 @@ class Slot:
         d.ctrl[:6] = q0
         self.wrist_q0 = q0
         mj.mj_forward(m, d)
+
+    def _wrist_rot(self, hinge: np.ndarray) -> np.ndarray:
+        """(3, 3) wrist body rotation (world) for the three hinge angles about the palm's f, l, n axes."""
+        r_delta = np.eye(3)
+        for axis, angle in zip(self.hinge_axes, hinge):
+            r_delta = r_delta @ _axis_angle(axis, angle)
+        return self.mount @ r_delta
 
     # -- physics -----------------------------------------------------------------------------
     def step(self, ctrl: np.ndarray) -> bool:

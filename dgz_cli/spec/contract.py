@@ -47,6 +47,14 @@ GLOBAL_BLOCKS: tuple[tuple[str, int], ...] = (
     ("w_obj", 3),        # object angular velocity, palm frame, / 5 rad/s (0 on hardware)
     ("lift", 1),         # 1 after the grasp phase
 )
+# Optional blocks (the "markov" layout, issue 11): what makes the finger state Markov and the phase visible.
+MARKOV_NODE_BLOCKS = NODE_BLOCKS + (
+    ("pd_error", 3),     # (target − q) per primitive axis (sign-corrected mean), / pd_error_scale, clipped to [-1, 1]
+)
+MARKOV_GLOBAL_BLOCKS = GLOBAL_BLOCKS + (
+    ("guide", 3),        # the wrist guidance error: target − grasp point, palm frame, / target_scale
+    ("phase", 1),        # control step / episode_steps
+)
 PRIVILEGED_BLOCKS = frozenset({"contact", "force"})  # observed in simulation only
 
 
@@ -72,6 +80,7 @@ class ObservationLayout(_Frozen):
     velocity_scale: float = Field(10.0, gt=0, description="rad/s: joint velocities are observed / this, clipped to [-1, 1]")
     target_scale: float = Field(0.5, gt=0, description="m: the grasp-target vector is observed / this, clipped to [-1, 1]")
     point_cloud: int = Field(256, ge=8, description="object surface points for the node → surface vectors")
+    pd_error_scale: float = Field(0.1, gt=0, description="rad: the pd_error block is observed / this")
 
     model_config = ConfigDict(frozen=True, extra="forbid", populate_by_name=True)
 
@@ -107,6 +116,28 @@ class ObservationLayout(_Frozen):
         return tuple(sorted(PRIVILEGED_BLOCKS & {n for n, _ in self.node + self.global_}))
 
 
+class WristGuidance(_Frozen):
+    """Objective-driven wrist guidance (the paper's commented-out training detail; GraspXL steers its wrist
+    the same way): during the grasp phase the wrist also moves by ``gain`` × (target − grasp point), at most
+    ``speed_cap`` m per step, and the policy's wrist action is a residual on top. The target is the object
+    cloud's centroid (on hardware: of the first perception frame), the grasp point the open hand's node
+    centroid; orientation is held (no rotational guidance: the object is assumed static before the grasp,
+    as on hardware, so holding the start orientation holds it in the object frame). ``gain`` 0 turns it off."""
+
+    gain: float = Field(0.0, ge=0, le=1)
+    speed_cap: float = Field(0.01, gt=0, le=0.1, description="m per control step")
+
+    def delta(self, target_m: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """(B, 6) wrist command (m, palm frame; zero rotation) from the palm → target vectors (B, 3) m and the
+        palm → grasp-point offsets (B, 3) m, both in the palm frame; ``active`` (B,) bool."""
+        step = self.gain * (np.asarray(target_m) - np.asarray(grasp_offset))
+        norm = np.linalg.norm(step, axis=-1, keepdims=True)
+        step = step * np.minimum(1.0, self.speed_cap / np.maximum(norm, 1e-12))
+        out = np.zeros(step.shape[:-1] + (6,))
+        out[..., :3] = step * np.asarray(active, dtype=float)[..., None]
+        return out
+
+
 class ActionLayout(_Frozen):
     wrist_dim: int = Field(6, gt=0)
     n_prim: int = Field(3, gt=0, description="primitives per node: FLEX, ABD, ROT")
@@ -115,6 +146,11 @@ class ActionLayout(_Frozen):
                                  "increments of its actuated joints in M_h order, no sign")
     finger_scale: float = Field(0.015, gt=0, le=0.2, description="rad per unit of a finger action")
     wrist_scale: float = Field(0.01, gt=0, le=0.2, description="m or rad per unit of a wrist action")
+    finger_max_lead: float | None = Field(None, gt=0, le=10, description="rad: a finger target stays within this "
+                                          "of the measured joint (a blocked finger does not wind its target up); "
+                                          "None = no cap")
+    mask_actions: bool = Field(False, description="inactive primitive dimensions (activation mask 0) are not "
+                               "actions: not sampled, not scored (log-prob, entropy, KL, BC)")
 
     def dim(self, n_nodes: int) -> int:
         return self.wrist_dim + self.n_prim * n_nodes
@@ -174,6 +210,7 @@ class ControlContract(_Frozen):
     observation: ObservationLayout = ObservationLayout()
     action: ActionLayout = ActionLayout()
     episode: EpisodeProtocol = EpisodeProtocol()
+    guidance: WristGuidance = WristGuidance()
 
     @property
     def privileged_inputs(self) -> tuple[str, ...]:
@@ -182,13 +219,15 @@ class ControlContract(_Frozen):
 
 def finger_targets(targets: np.ndarray, alpha: np.ndarray, joint_node: np.ndarray, joint_prim: np.ndarray,
                    joint_sign: np.ndarray, joint_slot: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                   action: ActionLayout, step_cap: np.ndarray | float = math.inf) -> np.ndarray:
+                   action: ActionLayout, step_cap: np.ndarray | float = math.inf,
+                   q: np.ndarray | None = None) -> np.ndarray:
     """New joint targets from per-node finger actions, the one mapping sim and runtime share.
 
     targets (B, L) rad; alpha (B, N, n_prim) normalized finger actions (already clipped to [-1, 1]);
     joint_node / joint_prim / joint_slot (B, L) int, joint_sign (B, L) ±1 (0 on padded joints);
     lower / upper (B, L) rad. Each joint moves by sign · α[node, primitive] · finger_scale (or, in
-    ``joint`` mode, α[node, slot] · finger_scale), by at most ``step_cap`` rad, and stays in its limits.
+    ``joint`` mode, α[node, slot] · finger_scale), by at most ``step_cap`` rad, stays within
+    ``action.finger_max_lead`` of the measured joints ``q`` (B, L) when given, and stays in its limits.
     Returns (B, L).
     """
     b = np.arange(targets.shape[0])[:, None]
@@ -197,4 +236,11 @@ def finger_targets(targets: np.ndarray, alpha: np.ndarray, joint_node: np.ndarra
     else:
         dq = alpha[b, joint_node, joint_slot] * action.finger_scale * (joint_sign != 0)
     dq = np.clip(dq, -step_cap, step_cap)
-    return np.clip(targets + dq, lower, upper)
+    new = targets + dq
+    if q is not None and action.finger_max_lead is not None:
+        lead = action.finger_max_lead
+        # as for the wrist: a command may not grow the lead beyond the cap, but a lead that is already
+        # larger (the joint was pushed) is not yanked back
+        bound = np.maximum(lead, np.abs(targets - q))
+        new = np.clip(new, q - bound, q + bound)
+    return np.clip(new, lower, upper)

@@ -8,6 +8,8 @@ in ``spec`` so that checkpoints (``rl``) can record it without importing the sim
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 from dgz_cli.spec.contract import ControlContract
@@ -28,6 +30,26 @@ class RewardWeights(_Frozen):
                                     "over the lift and hold phases as a fraction of lift_height")
 
 
+class GraspXLReward(_Frozen):
+    """The reward of GraspXL's code (issue 11), with a lift/hold term and a success bonus for our protocol's
+    lift. Terms (each logged): r_dis = −Σ w_i ‖d_i‖ / Σ w_i (fingertips weigh ``tip_weight``), r_contact =
+    Σ w_i c_i / Σ w_i, r_force = Σ w_i min(f_i / force_scale, 1) / Σ w_i (positive, capped), r_objvel =
+    −‖v_obj − v_palm‖² (the object's velocity relative to the palm; before the lift the palm's is dropped),
+    r_lift = clip(rise / lift_height, 0, 1) after the grasp phase, r_success = 1 at the last step of a
+    successful episode; pushing the object more than ``push_limit`` during the grasp phase ends the episode
+    (a true terminal state) with ``push_penalty``."""
+
+    dis: float = Field(0.3, ge=0, le=1e3)
+    contact: float = Field(1.0, ge=0, le=1e3)
+    force: float = Field(0.5, ge=0, le=1e3)
+    objvel: float = Field(1.5, ge=0, le=1e3)
+    lift: float = Field(3.0, ge=0, le=1e3)
+    success: float = Field(30.0, ge=0, le=1e4)
+    tip_weight: float = Field(4.0, ge=1, le=100)
+    push_limit: float = Field(0.3, gt=0, le=10, description="m of object displacement during the grasp phase")
+    push_penalty: float = Field(10.0, ge=0, le=1e4)
+
+
 class EnvConfig(_Frozen):
     """Defaults are the paper's protocol; lengths in m, times in s, angles in rad, forces in N."""
 
@@ -43,3 +65,10 @@ class EnvConfig(_Frozen):
     wrist_kp_ang: float = Field(100.0, gt=0)
     force_threshold: float = Field(1.0, ge=0, description="f0 of r_force in units of force_scale")
     reward: RewardWeights = RewardWeights()
+    reward_variant: Literal["paper", "graspxl"] = Field(
+        "paper", description="paper: the text's terms and weights (reward); graspxl: GraspXL's code (graspxl)")
+    graspxl: GraspXLReward = GraspXLReward()
+    roll: Literal["uniform", "narrow"] = Field(
+        "uniform", description="the hand's roll about the approach axis at reset: uniform, or the best of "
+                               "roll_candidates for closing across the object's narrowest width")
+    roll_candidates: int = Field(10, ge=1, le=360)

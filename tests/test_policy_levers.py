@@ -1,0 +1,169 @@
+"""Issue 11's levers, each through the control contract or the env config: wrist guidance, the narrow-width
+start roll, the GraspXL-code reward, Markov finger state (PD error, lead cap), masked action dims, the
+exploration floor and per-type log-std. Hand-computed where possible."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from dgz_cli.policy.graph import to_tensors
+from dgz_cli.policy.magcn import MAGCN
+from dgz_cli.policy.presets import MagcnConfig
+from dgz_cli.rl.config import PPOConfig
+from dgz_cli.sim.env import GraspEnv
+from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.sim.reward import graspxl_terms, graspxl_total
+from dgz_cli.spec.catalog import resolve_spec
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ControlContract,
+                                   ObservationLayout, WristGuidance, finger_targets)
+from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward
+from dgz_cli.spec.io import load_spec
+
+TRI = load_spec(resolve_spec("dgz_tri"))
+MARKOV = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS)
+TINY = MagcnConfig(gcn_widths=(16, 16), global_hidden=16, head_hidden=16, value_hidden=16, phys_out=8)
+
+
+def test_guidance_by_hand():
+    g = WristGuidance(gain=0.1, speed_cap=0.01)
+    d = g.delta(np.array([[0.05, 0.0, 0.10], [0.0, 0.0, 0.30]]), np.array([[0.0, 0.0, 0.05]] * 2),
+                np.array([True, True]))
+    np.testing.assert_allclose(d[0], [0.005, 0, 0.005, 0, 0, 0])          # 0.1 × (0.05, 0, 0.05): under the cap
+    np.testing.assert_allclose(d[1], [0, 0, 0.01, 0, 0, 0])               # 0.1 × 0.25 = 0.025 → capped at 0.01
+    assert not g.delta(np.ones((1, 3)), np.zeros((1, 3)), np.array([False])).any()  # only in the grasp phase
+
+
+def test_finger_lead_cap_by_hand():
+    act = ActionLayout(finger_max_lead=0.05)
+    one = lambda *v: np.array([v], dtype=float)  # noqa: E731
+    idx = np.zeros((1, 1), dtype=int)  # one joint: node 0, FLEX, slot 0
+    args = (idx, idx, one(1.0), idx, one(-3.0), one(3.0), act)
+    # target 0.04 ahead of q already, +1 action (0.015): capped at q + 0.05
+    assert finger_targets(one(0.04), np.ones((1, 1, 3)), *args, q=one(0.0))[0, 0] == pytest.approx(0.05)
+    # a joint pushed back 0.2 rad: the lead is not yanked back, but does not grow either
+    assert finger_targets(one(0.2), np.ones((1, 1, 3)), *args, q=one(0.0))[0, 0] == pytest.approx(0.2)
+    # without the cap the target just integrates
+    assert finger_targets(one(0.2), np.ones((1, 1, 3)), *args[:-1], ActionLayout(), q=one(0.0))[0, 0] == pytest.approx(0.215)
+
+
+def test_graspxl_terms_by_hand():
+    d = np.array([[[0.1, 0, 0], [0.2, 0, 0], [0, 0, 0]]])       # 3 nodes, the third padding
+    w = np.array([[1.0, 4.0, 0.0]])                              # node 1 a fingertip
+    t = graspxl_terms(d, np.array([[True, False, True]]), np.array([[0.5, 3.0, 9.0]]), w,
+                      np.array([[0.0, 0.3, 0.4]]), np.array([0.25]), np.array([True]), np.array([False]),
+                      np.array([True]), 0.5)
+    assert t["dis"][0] == pytest.approx(-(0.1 + 4 * 0.2) / 5)
+    assert t["contact"][0] == pytest.approx(1 / 5) and t["force"][0] == pytest.approx((0.5 + 4 * 1.0) / 5)
+    assert t["objvel"][0] == pytest.approx(-0.25) and t["lift"][0] == pytest.approx(0.5)
+    assert t["success"][0] == 0 and t["push"][0] == -1
+    w8 = GraspXLReward()
+    assert graspxl_total(t, w8)[0] == pytest.approx(0.3 * t["dis"][0] + 0.2 + 0.5 * 0.9 - 1.5 * 0.25 + 3 * 0.5 - 10)
+
+
+def _env(cfg: EnvConfig, obj: str = "box") -> GraspEnv:
+    return GraspEnv([(TRI, resolve_objects(obj)[0])], cfg, seed=4, threads=1)
+
+
+def test_guidance_moves_the_wrist_without_any_action():
+    still = _env(EnvConfig())
+    guided = _env(EnvConfig(contract=ControlContract(guidance=WristGuidance(gain=0.05))))
+    gaps = []
+    for env in (still, guided):
+        obs = env.reset()
+        start = np.linalg.norm(obs["global"][0, :3])
+        for _ in range(30):
+            obs, *_ = env.step(np.zeros((1, env.action_dim)))
+        gaps.append(start - np.linalg.norm(obs["global"][0, :3]))
+        env.close()
+    assert abs(gaps[0]) < 0.03 and gaps[1] > 0.2  # normalized by 0.5 m: the guided palm came > 10 cm closer
+
+
+def test_markov_layout_observes_pd_error_guide_and_phase():
+    cfg = EnvConfig(contract=ControlContract(observation=MARKOV, guidance=WristGuidance(gain=0.05)))
+    env = _env(cfg)
+    obs = env.reset()
+    lay = cfg.contract.observation
+    assert obs["nodes"].shape[-1] == 26 and obs["global"].shape[-1] == 20
+    assert obs["global"][0, lay.global_col("phase")] == 0.0
+    a = np.zeros((1, env.action_dim))
+    a[0, 6::3] = 1.0  # +FLEX everywhere: the targets lead the joints
+    obs, *_ = env.step(a)
+    assert obs["global"][0, lay.global_col("phase")] == pytest.approx(1 / 190)
+    pd = obs["nodes"][0, :, lay.node_col("pd_error")]
+    assert pd[:, 0].max() > 0.01  # FLEX leads
+    guide = obs["global"][0, lay.global_col("guide")] * lay.target_scale
+    target = obs["global"][0, lay.global_col("target")] * lay.target_scale
+    np.testing.assert_allclose(guide, target - env.grasp_offset[0], atol=1e-6)
+    env.close()
+
+
+def test_narrow_roll_closes_across_the_narrow_side():
+    """A box's narrow side lies along the hand's closing axis at reset, far more often than by chance."""
+    cfg = EnvConfig(roll="narrow")
+    env = GraspEnv([(TRI, resolve_objects("box")[0])] * 6, cfg, seed=1, threads=1)
+    env.reset()
+    widths = {"narrow": [], "uniform": []}
+    for name, e in (("narrow", env), ("uniform", GraspEnv([(TRI, resolve_objects("box")[0])] * 6, EnvConfig(),
+                                                           seed=1, threads=1))):
+        e.reset()
+        state = e.state()
+        for b, s in enumerate(e.slots):
+            axis = state["palm_rot"][b] @ s.idx.closing_axis
+            pts = s.idx.cloud @ state["obj_rot"][b].T
+            widths[name].append(np.ptp(pts @ axis))
+        e.close()
+    assert np.mean(widths["narrow"]) < 0.8 * np.mean(widths["uniform"])
+
+
+def test_push_ends_the_episode_as_a_true_terminal_state():
+    cfg = EnvConfig(reward_variant="graspxl", graspxl=GraspXLReward(push_limit=0.01))
+    env = _env(cfg, "sphere")
+    env.reset()
+    s = env.slots[0]
+    s.data.qvel[s.idx.object_dadr] = 2.0  # shove the ball: it leaves the 1 cm limit within a step
+    obs, reward, terminated, truncated, info = env.step(np.zeros((1, env.action_dim)))
+    assert terminated[0] and not truncated[0] and info["episode"][0]["pushed"]
+    assert reward[0] < -9 and "r_objvel" in info["episode"][0]
+    env.close()
+
+
+def test_masked_actions_are_neither_sampled_nor_scored():
+    contract = ControlContract(action=ActionLayout(mask_actions=True))
+    env = _env(EnvConfig(contract=contract))
+    obs = to_tensors(env.reset())
+    env.close()
+    torch.manual_seed(0)
+    m = MAGCN(TINY, contract)
+    out = m.sample(obs)
+    inactive = (obs["mask"] == 0).reshape(1, -1)
+    assert inactive.any()
+    assert torch.all(out["action"][:, 6:][inactive] == 0) and torch.all(out["mean"][:, 6:][inactive] == 0)
+    full = MAGCN(TINY)
+    full.load_state_dict(m.state_dict())
+    lp_full = full.evaluate(obs, out["action"])[0]
+    lp_masked = m.evaluate(obs, out["action"])[0]
+    per_dim = -0.5 * math.log(2 * math.pi) - TINY.init_log_std  # log-density of a 0 action at mean 0
+    assert (lp_full - lp_masked).item() == pytest.approx(per_dim * int(inactive.sum()), rel=1e-4)
+
+
+def test_per_type_log_std_and_the_floor():
+    from dgz_cli.rl.ppo import PPO
+
+    env = _env(EnvConfig())
+    obs = to_tensors(env.reset())
+    env.close()
+    m = MAGCN(TINY.model_copy(update=dict(log_std_per_type=True)))
+    assert m.log_std_prim.shape == (6, 3)
+    with torch.no_grad():
+        m.log_std_prim[5] = -3.0  # node type 5 = fingertip (NODE_TYPES order)
+    log_std = m(obs)[1][0, 6:].reshape(-1, 3)
+    tip = obs["nodes"][0, :, m.type_cols][:, 5] > 0
+    assert torch.all(log_std[tip] == -3.0) and torch.all(log_std[~tip & obs["node_valid"][0]] == TINY.init_log_std)
+    ppo = PPO(m, PPOConfig(min_std=0.2))
+    m.clamp_log_std(math.log(0.2))
+    assert float(m.log_std_prim.detach().min()) == pytest.approx(math.log(0.2))
+    assert ppo.cfg.min_std == 0.2
