@@ -103,7 +103,7 @@ def test_eval_json_and_zero_shot_refusal(run_dir, tmp_path):
     assert data["protocol"]["lift_height_m"] == 0.5 and data["protocol"]["hold_s"] == 2.0
     assert data["training_hands"] == ["dgz_tri"]
     rows = (tmp_path / "r.csv").read_text().splitlines()
-    assert rows[0].startswith("hand,object,trial,success") and len(rows) == 5
+    assert rows[0].startswith("hand,object,trial,success,failure") and len(rows) == 5
     res = _dgz("eval", "--table", str(js), cwd=tmp_path)
     assert res.returncode == 0 and "dgz_tri (train)" in res.stdout
 

@@ -27,14 +27,15 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
     if len(objects) != 1:
         raise DgzError(f"--object '{obj}' names {len(objects)} objects", "give exactly one object name")
     write_scene_xml(load_spec(resolve_spec(hand)), objects[0], EnvConfig(), asset_root, out)
-    console.print(f"[green]wrote[/] {out} [dim](view it: python -m mujoco.viewer --mjcf {out})[/]")
+    console.print(f"[green]wrote[/] {escape(str(out))} [dim](view it: python -m mujoco.viewer --mjcf "
+                  f"{escape(str(out))})[/]")
     return 0
 
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
              guidance: float = 0.0, roll: str = "uniform") -> int:
-    from dgz_cli.sim.evaluate import run_episodes, summarize
+    from dgz_cli.sim.evaluate import failure_class, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.envconfig import EnvConfig
@@ -77,14 +78,14 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     t0 = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=True) as bar:
-        task = bar.add_task(f"{policy}: {len(specs)} hand(s) × {len(objs)} object(s) × {trials} trials",
+        task = bar.add_task(f"{escape(policy)}: {len(specs)} hand(s) × {len(objs)} object(s) × {trials} trials",
                             total=len(pairs) * trials)
         records: list[dict] = []
         for spec in specs:  # one env per hand keeps memory flat (one scene per object, not per pair)
             before = len(records)
             records += run_episodes([(spec, o) for o in objs], make_policy, trials, cfg, seed, asset_root,
                                     progress=lambda done, total: bar.update(task, completed=before + done))
-    summary = summarize(records)
+    summary = summarize(records, cfg.contract.episode.lift_height, cfg.contract.episode.success_fraction)
     ep = cfg.contract.episode
     protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
                     trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps,
@@ -94,22 +95,31 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     table.add_column("hand")
     table.add_column("success rate", justify="right")
     table.add_column("episodes", justify="right")
+    from dgz_cli.sim.evaluate import FAILURE_CLASSES
+
+    for c in FAILURE_CLASSES:
+        table.add_column(c, justify="right")
+    table.add_column("rise ≥ 0.1 m (GraspXL)", justify="right")
     for name, h in summary.items():
-        table.add_row(name, f"{h['success_rate']:.3f}", str(h["episodes"]))
+        table.add_row(escape(name), f"{h['success_rate']:.3f}", str(h["episodes"]),
+                      *(str(h["failures"][c]) for c in FAILURE_CLASSES), f"{h['graspxl_success_rate']:.3f}")
     console.print(table)
     console.print(f"[dim]{len(records)} episodes in {time.perf_counter() - t0:.0f} s[/]")
     if json_out is not None:
         report = dict(policy=policy, protocol=protocol,
                       training_hands=sorted(meta.training_hands) if meta else [],
-                      hands={k: dict(success_rate=v["success_rate"], episodes=v["episodes"], objects=v["objects"])
+                      hands={k: dict(success_rate=v["success_rate"], episodes=v["episodes"], failures=v["failures"],
+                                     graspxl_success_rate=v["graspxl_success_rate"], objects=v["objects"])
                              for k, v in summary.items()})
         atomic_write(json_out, json.dumps(report, indent=2) + "\n")
     if csv_out is not None:
         buf = io.StringIO()
         w = csv.writer(buf)
-        w.writerow(["hand", "object", "trial", "success", "max_rise_m", "return"])
+        w.writerow(["hand", "object", "trial", "success", "failure", "max_rise_m", "return"])
         for r in records:
-            w.writerow([r["hand"], r["object"], r["trial"], int(r["success"]), f"{r['max_rise']:.4f}", f"{r['return_']:.3f}"])
+            why = failure_class(r, cfg.contract.episode.lift_height, cfg.contract.episode.success_fraction)
+            w.writerow([r["hand"], r["object"], r["trial"], int(r["success"]), why or "", f"{r['max_rise']:.4f}",
+                        f"{r['return_']:.3f}"])
         atomic_write(csv_out, buf.getvalue())
     return 0
 
@@ -146,9 +156,9 @@ def table(files: list[Path], console: Console) -> int:
     t = Table(title="success rate (Table I layout: training hands | unseen hands | averages)")
     t.add_column("policy")
     for h in seen_cols:
-        t.add_column(f"{h} (train)", justify="right")
+        t.add_column(f"{escape(str(h))} (train)", justify="right")
     for h in unseen_cols:
-        t.add_column(f"{h} (unseen)", justify="right")
+        t.add_column(f"{escape(str(h))} (unseen)", justify="right")
     t.add_column("seen avg", justify="right")
     t.add_column("unseen avg", justify="right")
     for name, policy, _, hs in rows:
@@ -157,7 +167,7 @@ def table(files: list[Path], console: Console) -> int:
             return f"{sum(have) / len(have):.2f}" if have else "—"
 
         cells = [f"{hs[h]['success_rate']:.2f}" if h in hs else "—" for h in seen_cols + unseen_cols]
-        t.add_row(f"{name} ({policy})", *cells, avg(seen_cols), avg(unseen_cols))
-    wide = Console(file=console.file, width=max(console.width, 60 + 16 * (len(seen_cols) + len(unseen_cols))))
+        t.add_row(escape(f"{name} ({policy})"), *cells, avg(seen_cols), avg(unseen_cols))
+    wide = Console(file=console.file, emoji=False, width=max(console.width, 60 + 16 * (len(seen_cols) + len(unseen_cols))))
     wide.print(t)
     return 0

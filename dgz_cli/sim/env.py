@@ -66,6 +66,9 @@ class GraspEnv:
         self.ok_hold = np.ones(self.B, bool)
         self.ret = np.zeros(self.B)
         self.max_rise = np.zeros(self.B)
+        self.touched = np.zeros(self.B, bool)        # any hand-object contact so far in the episode
+        self.max_push = np.zeros(self.B)            # largest object displacement during the grasp phase, m
+        self.rise_lift_end = np.zeros(self.B)       # the object's rise at the end of the lift phase, m
         self.terms = GRASPXL_TERMS if cfg.reward_variant == "graspxl" else TERMS
         self.term_sums = {k: np.zeros(self.B) for k in self.terms}
         B, N, L = self.B, self.N, self.L
@@ -173,6 +176,9 @@ class GraspEnv:
         self.ok_hold[b] = True
         self.ret[b] = 0.0
         self.max_rise[b] = 0.0
+        self.touched[b] = False
+        self.max_push[b] = 0.0
+        self.rise_lift_end[b] = 0.0
         for v in self.term_sums.values():
             v[b] = 0.0
         s.gather()
@@ -235,6 +241,11 @@ class GraspEnv:
         obs, d_world, obj_z = self._observe()
         rise = obj_z - self.z0
         self.max_rise = np.maximum(self.max_rise, rise)
+        self.touched |= contact.any(-1)
+        in_grasp = self.t <= ep.grasp_steps
+        disp = np.linalg.norm(self.buf["xpos"][:, self.N] - self.p0, axis=-1)
+        self.max_push = np.where(in_grasp, np.maximum(self.max_push, disp), self.max_push)
+        self.rise_lift_end = np.where(self.t == ep.grasp_steps + ep.lift_steps, rise, self.rise_lift_end)
         risen = rise >= ep.success_fraction * ep.lift_height
         holding = self.t > ep.grasp_steps + ep.lift_steps
         self.ok_hold &= np.where(holding, risen, True)
@@ -263,7 +274,9 @@ class GraspEnv:
         for b in finished:
             info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], pushed=bool(terminated[b]),
                                            return_=float(self.ret[b]),
-                                           steps=int(self.t[b]), max_rise=float(self.max_rise[b]), hand=self.slots[b].spec.name,
+                                           steps=int(self.t[b]), max_rise=float(self.max_rise[b]), touched=bool(self.touched[b]),
+                                           max_push=float(self.max_push[b]), rise_lift_end=float(self.rise_lift_end[b]),
+                                           hand=self.slots[b].spec.name,
                                            object=self.slots[b].obj.name,
                                            **{f"r_{k}": float(self.term_sums[k][b] / max(1, self.t[b])) for k in self.terms})
             self.instabilities += int(not ok[b])

@@ -44,17 +44,48 @@ def run_episodes(pairs: list[tuple[HandSpec, ObjectModel]], make_policy: Callabl
     return records
 
 
-def summarize(records: list[dict]) -> dict:
-    """Success rate per hand and per (hand, object)."""
+FAILURE_CLASSES = ("never touched", "pushed away", "not lifted", "dropped during hold", "unstable")
+PUSHED = 0.05  # m: an object displaced this much during the grasp phase was pushed, not grasped
+GRASPXL_RISE = 0.1  # m: GraspXL's success criterion (rise at the end of the lift), a secondary column
+
+
+def failure_class(record: dict, lift_height: float, success_fraction: float) -> str | None:
+    """Why an episode failed (None if it succeeded): the paper's failure-case analysis, from the episode
+    record of :class:`~dgz_cli.sim.env.GraspEnv`. Checked in this order: unstable (MuJoCo), never touched
+    (no hand-object contact), pushed away (the object moved > 5 cm during the grasp phase, or the episode
+    ended on the push limit) and not lifted (it did not follow the lift to success_fraction × lift_height),
+    dropped during hold (it was up at the end of the lift but fell during the hold)."""
+    if record["success"]:
+        return None
+    if record["unstable"]:
+        return "unstable"
+    if not record["touched"]:
+        return "never touched"
+    if record["rise_lift_end"] < success_fraction * lift_height:
+        return "pushed away" if record.get("pushed") or record["max_push"] > PUSHED else "not lifted"
+    return "dropped during hold"
+
+
+def summarize(records: list[dict], lift_height: float = 0.5, success_fraction: float = 0.8) -> dict:
+    """Success rate per hand and per (hand, object), the failure classes of the failed episodes, and the
+    GraspXL criterion (rise ≥ 0.1 m at the end of the lift) as a secondary rate."""
     out: dict[str, dict] = {}
     for r in records:
-        h = out.setdefault(r["hand"], {"episodes": 0, "successes": 0, "objects": {}})
+        h = out.setdefault(r["hand"], {"episodes": 0, "successes": 0, "graspxl": 0, "objects": {},
+                                       "failures": dict.fromkeys(FAILURE_CLASSES, 0)})
         h["episodes"] += 1
         h["successes"] += int(r["success"])
-        o = h["objects"].setdefault(r["object"], [0, 0])
-        o[0] += int(r["success"])
-        o[1] += 1
+        h["graspxl"] += int(r["rise_lift_end"] >= GRASPXL_RISE)
+        o = h["objects"].setdefault(r["object"], {"s": 0, "n": 0, "failures": dict.fromkeys(FAILURE_CLASSES, 0)})
+        o["s"] += int(r["success"])
+        o["n"] += 1
+        why = failure_class(r, lift_height, success_fraction)
+        if why is not None:
+            h["failures"][why] += 1
+            o["failures"][why] += 1
     for h in out.values():
         h["success_rate"] = h["successes"] / max(1, h["episodes"])
-        h["objects"] = {k: {"success_rate": s / n, "trials": n} for k, (s, n) in sorted(h["objects"].items())}
+        h["graspxl_success_rate"] = h.pop("graspxl") / max(1, h["episodes"])
+        h["objects"] = {k: {"success_rate": o["s"] / o["n"], "trials": o["n"], "failures": o["failures"]}
+                        for k, o in sorted(h["objects"].items())}
     return out
