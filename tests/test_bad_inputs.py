@@ -420,3 +420,48 @@ def test_onboard_and_lint_refuse_non_regular_or_huge_inputs(what: str, tmp_path:
     assert r.seconds < 30, f"took {r.seconds:.1f}s"
     assert any(ln.startswith("FAIL") for ln in r.stdout.splitlines()), _describe(r)
     assert_nonzero_exit(r)
+
+
+# --------------------------------------------------------------------------------------------
+# Terminal output: rich markup and :emoji: codes inside names from input files print literally
+# --------------------------------------------------------------------------------------------
+
+def _rename(obj, old: str, new: str):
+    """Every string (value or key) equal to ``old`` becomes ``new``: a consistent rename of a node or joint."""
+    if isinstance(obj, dict):
+        return {(new if k == old else k): _rename(v, old, new) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_rename(v, old, new) for v in obj]
+    return new if obj == old else obj
+
+
+MARKUP_NAMES = ["[link=file:///etc/passwd]f0[/link]", ":x:", "[bold red]loud[/]", "[/]", ":thumbs_up:x",
+                "\\[b]x"]
+
+
+@pytest.mark.parametrize("name", MARKUP_NAMES)
+@pytest.mark.parametrize("what", ["joint", "node", "palm-link"])
+def test_show_prints_names_from_the_spec_literally(what: str, name: str, good_spec: dict, tmp_path: Path):
+    import copy
+
+    spec = copy.deepcopy(good_spec)
+    if what == "joint":
+        spec = _rename(spec, spec["joints"][0]["joint"], name)
+    elif what == "node":
+        spec = _rename(spec, next(n["id"] for n in spec["nodes"] if n["parent"] is not None), name)
+    else:
+        spec["palm"]["link"] = name
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    r = dgz(tmp_path, "show", "s.yaml")
+    assert r.code == 0, _describe(r)
+    assert_no_traceback(r)
+    assert name in r.stdout, f"{name!r} not printed literally\n" + _describe(r)
+    assert "❌" not in r.stdout and "👍" not in r.stdout and "\x1b]8;" not in r.stdout, _describe(r)
+
+
+@pytest.mark.parametrize("name", [":x:", "[bold]b_j1[/bold]"])
+def test_onboard_summary_prints_urdf_names_literally(name: str, tmp_path: Path):
+    (tmp_path / "hand.urdf").write_text(good_urdf(b_j1_name=name))
+    r = dgz(tmp_path, "onboard", "hand.urdf", "-o", "out.yaml")
+    assert_no_traceback(r)
+    assert name in r.stdout and "❌" not in r.text, _describe(r)

@@ -22,8 +22,8 @@ app = typer.Typer(no_args_is_help=True, pretty_exceptions_enable=False, add_comp
                   help="dgz — DexGrasp-Zero: onboard any dexterous hand from its URDF and grasp with one policy.")
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that print JSON (throughput, latency, peak memory).")
 app.add_typer(bench_app, name="bench")
-out = Console()
-err = Console(stderr=True)
+out = Console(emoji=False)  # names from input files: no :emoji: codes (markup is escaped where printed)
+err = Console(stderr=True, emoji=False)
 
 ASSET_HELP = "folder holding hands/ and objects/ (default: $DGZ_ASSET_ROOT)"
 

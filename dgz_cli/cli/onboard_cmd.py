@@ -56,7 +56,8 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
     else:
         print_summary(spec, console)
         if carried and spec.overrides.joints:
-            console.print(f"[dim]kept {len(spec.overrides.joints)} override(s) from the existing {out_path}[/]")
+            console.print(f"[dim]kept {len(spec.overrides.joints)} override(s) from the existing "
+                          f"{escape(str(out_path))}[/]")
         for note in result.notes:
             console.print(f"[dim]note: {escape(note)}[/]", soft_wrap=True)
         for f in findings:
@@ -64,24 +65,25 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
             console.print(f"[{colour}]{f.level}[/] {escape(f.field)}: {escape(f.message)} [dim]— {escape(f.fix)}[/]",
                           soft_wrap=True)
         if errors:
-            console.print(f"[bold red]lint failed; {out_path} was not written[/]")
+            console.print(f"[bold red]lint failed; {escape(str(out_path))} was not written[/]")
         else:
-            console.print(f"[green]wrote[/] {out_path} [dim](lint passed)[/]")
+            console.print(f"[green]wrote[/] {escape(str(out_path))} [dim](lint passed)[/]")
     return 1 if errors else 0
 
 
 def print_summary(spec, console: Console) -> None:
-    nodes = Table(title=f"{spec.name}: semantic nodes ({spec.palm.side} hand, palm link '{spec.palm.link}')")
+    e = lambda s: escape(str(s))  # every name comes from the URDF: rich markup in it prints literally
+    nodes = Table(title=f"{e(spec.name)}: semantic nodes ({e(spec.palm.side)} hand, palm link '{e(spec.palm.link)}')")
     for col in ("node", "finger", "type", "parent", "joints", "mask F/A/R"):
         nodes.add_column(col)
     for n in spec.nodes:
         mask = "".join(c if v else "·" for c, v in zip("FAR", spec.activation_mask[n.id]))
-        nodes.add_row(n.id, n.finger, n.type, n.parent or "—", ", ".join(n.joints) or "—", mask)
+        nodes.add_row(e(n.id), e(n.finger), e(n.type), e(n.parent or "—"), e(", ".join(n.joints) or "—"), mask)
     console.print(nodes)
     mh = Table(title="M_h (command order): Δq = sign · α[node, primitive]")
     for col in ("#", "joint", "node", "primitive", "sign", "margin", ""):
         mh.add_column(col)
     for k, r in enumerate(spec.joints):
         flag = "[yellow]flagged[/]" if r.flagged else ("[cyan]override[/]" if r.source == "override" else "")
-        mh.add_row(str(k), r.joint, r.node, r.primitive.value, f"{r.sign:+d}", f"{r.margin:.2f}", flag)
+        mh.add_row(str(k), e(r.joint), e(r.node), r.primitive.value, f"{r.sign:+d}", f"{r.margin:.2f}", flag)
     console.print(mh)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from dgz_cli.spec.errors import DgzError
@@ -16,7 +17,7 @@ def run(ref: str | None, png: Path | None, asset_root: str | None, list_hands: b
 
     if list_hands:
         for name in shipped_hands():
-            console.print(name)
+            console.print(escape(name))
         return 0
     if ref is None:
         raise DgzError("no spec given", f"name a spec file or a shipped hand ({', '.join(shipped_hands())})")
@@ -24,15 +25,16 @@ def run(ref: str | None, png: Path | None, asset_root: str | None, list_hands: b
     spec = load_spec(path)
     from dgz_cli.viz.show import graph_table_rows
 
-    table = Table(title=f"{spec.name} ({path}): {len(spec.nodes)} nodes, {len(spec.joints)} actuated joints, "
-                        f"{spec.palm.side} hand, palm '{spec.palm.link}'")
+    # every name below comes from the spec file: escaped, so rich markup in a name prints literally
+    table = Table(title=f"{escape(spec.name)} ({escape(str(path))}): {len(spec.nodes)} nodes, {len(spec.joints)} "
+                        f"actuated joints, {escape(spec.palm.side)} hand, palm '{escape(spec.palm.link)}'")
     for col in ("node", "finger", "type", "parent", "joints (primitive, sign)", "mask"):
         table.add_column(col)
     for row in graph_table_rows(spec):
-        table.add_row(*row)
+        table.add_row(*(escape(str(c)) for c in row))
     console.print(table)
     p = spec.palm
-    console.print(f"palm normal n={p.normal} finger axis f={p.finger_axis} (palm link frame)")
+    console.print(escape(f"palm normal n={p.normal} finger axis f={p.finger_axis} (palm link frame)"))
     if png is not None:
         from dgz_cli.viz.show import render_png
 
@@ -41,5 +43,5 @@ def run(ref: str | None, png: Path | None, asset_root: str | None, list_hands: b
 
         kin = load_kinematics(resolve_urdf(spec.provenance.urdf, asset_root), spec.provenance.xacro_args)
         render_png(spec, kin, Poser(kin, compile_model(kin)), png)
-        console.print(f"[green]wrote[/] {png}")
+        console.print(f"[green]wrote[/] {escape(str(png))}")
     return 0

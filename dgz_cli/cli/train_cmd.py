@@ -6,6 +6,7 @@ import signal
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 
@@ -104,7 +105,7 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
                       f"value MSE {stats['bc_value_loss']:.3f} [dim]collect {stats['collect_s']}s fit {stats['fit_s']}s[/]",
                       highlight=False)
 
-    console.print(f"training {cfg.preset} ({cfg.ablation}) on {', '.join(cfg.hands)} × {cfg.objects}: "
+    console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
     previous = signal.getsignal(signal.SIGTERM)
     def _stop(*_) -> None:  # SIGTERM saves and exits like Ctrl-C
@@ -114,12 +115,13 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
     try:
         trainer.train()
     except KeyboardInterrupt:
-        console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {out}[/] (continue with --resume)")
+        console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "
+                      "(continue with --resume)")
         return 130
     finally:
         signal.signal(signal.SIGTERM, previous)
         writer.close()
-    table = Table(title=f"{out}: {trainer.iteration} iterations")
+    table = Table(title=f"{escape(str(out))}: {trainer.iteration} iterations")
     for col in ("iteration", "success_rate", "mean_return", "steps_per_s"):
         table.add_column(col)
     for row in trainer.history[-5:]:
