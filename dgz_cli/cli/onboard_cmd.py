@@ -18,6 +18,31 @@ def default_name(urdf: Path) -> str:
     return re.sub(r"[^a-z0-9_\-]+", "_", stem).strip("_-") or "hand"
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    import os
+
+    try:
+        return os.path.realpath(a) == os.path.realpath(b) or os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _check_output(path: Path) -> None:
+    """-o must name a new or regular file (through symlinks): refused up front, with one line."""
+    import os
+    import stat
+
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise DgzError(f"cannot write {path}: {exc.strerror or exc}", "choose another output path") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device, FIFO or socket)"
+        raise DgzError(f"cannot write {path}: it exists and is {kind}", "name a new or regular file as the output")
+
+
 def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | None, palm_link: str | None,
         xacro_args: dict[str, str], overrides_file: Path | None, as_json: bool, console: Console) -> int:
     from dgz_cli.onboard.pipeline import onboard
@@ -29,6 +54,9 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
     if not re.fullmatch(r"[a-z0-9][a-z0-9_\-]*", name):
         raise DgzError(f"--name '{name}' is not a valid hand name", "use lower-case letters, digits, '_' or '-'")
     out_path = out_path or Path(f"{name}.yaml")
+    if _same_file(out_path, urdf):  # refuse before the (slow) pipeline; write_spec refuses it again
+        raise DgzError(f"cannot write {out_path}: it is the input URDF", "write the spec to another file (e.g. -o hand.yaml)")
+    _check_output(out_path)
     root = resolve_root(asset_root)
     overrides, carried = None, False
     if overrides_file is not None:
@@ -43,7 +71,7 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
     findings = lint_file(spec, out_path, str(root) if root else None, result.poser)
     errors = [f for f in findings if f.level == "error"]
     if not errors:
-        write_spec(spec, out_path)
+        write_spec(spec, out_path, inputs=(urdf,))
     if as_json:
         summary = dict(
             hand=spec.name, output=str(out_path) if not errors else None, lint="pass" if not errors else "fail",

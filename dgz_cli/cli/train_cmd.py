@@ -73,15 +73,67 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
         raise
 
 
+def _check_out(out: Path) -> bool:
+    """Refuse an unusable --out before anything is built; True when it already exists (a folder)."""
+    import os
+    import stat
+
+    from dgz_cli.spec.errors import DgzError
+
+    try:
+        st = os.stat(out)
+    except FileNotFoundError:
+        return False
+    except OSError as exc:
+        raise DgzError(f"--out {out}: {exc.strerror or exc}", "choose a writable --out folder") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise DgzError(f"--out {out}: exists and is not a folder", "--out names the run folder; choose another path")
+    return True
+
+
+def _clean_failed_run(out: Path, existed: bool, tb_before: set) -> None:
+    """Remove what a failed run created: its new TensorBoard event files, and the folders it made if empty."""
+    import shutil
+
+    if not existed:  # the folder is this run's own
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    tb = out / "tb"
+    for f in set(tb.glob("*")) - tb_before if tb.is_dir() else ():
+        shutil.rmtree(f, ignore_errors=True) if f.is_dir() else f.unlink(missing_ok=True)
+    try:
+        tb.rmdir()  # only when empty
+    except OSError:
+        pass
+
+
+def _mtime(path: Path):
+    try:
+        return path.stat().st_mtime_ns
+    except OSError:
+        return None
+
+
 def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_root: str | None, console: Console) -> int:
     from torch.utils.tensorboard import SummaryWriter
 
     from dgz_cli.rl.runner import write_csv, write_curve
 
+    existed = _check_out(out)
     cfg = _load_config(given, config_file, out, resume)
     trainer = build(cfg, out, asset_root, resume, log=lambda row: log(row), on_warm_start=lambda stats: warm(stats))
-    out.mkdir(parents=True, exist_ok=True)
-    writer = SummaryWriter(log_dir=str(out / "tb"))
+    tb_before = set((out / "tb").glob("*")) if (out / "tb").is_dir() else set()
+    try:  # only after build succeeded: a run refused on its input leaves nothing behind
+        out.mkdir(parents=True, exist_ok=True)
+        writer = SummaryWriter(log_dir=str(out / "tb"))
+    except OSError as exc:
+        trainer.env.close()
+        if not existed:
+            _clean_failed_run(out, existed, tb_before)
+        from dgz_cli.spec.errors import DgzError
+
+        raise DgzError(f"--out {out}: cannot create the run folder ({exc.strerror or exc})",
+                       "choose a writable --out folder") from None
 
     def log(row: dict) -> None:
         for k, v in row.items():
@@ -112,12 +164,18 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, _stop)
+    saved = _mtime(out / "checkpoint.yaml")
     try:
         trainer.train()
     except KeyboardInterrupt:
         console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")
         return 130
+    except BaseException:
+        writer.close()
+        if _mtime(out / "checkpoint.yaml") == saved:  # failed before a checkpoint: leave nothing behind
+            _clean_failed_run(out, existed, tb_before)
+        raise
     finally:
         signal.signal(signal.SIGTERM, previous)
         writer.close()
