@@ -144,12 +144,11 @@ def table(files: list[Path], console: Console) -> int:
     """Paper Table I layout from `dgz eval --json` files: training hands | unseen hands | averages."""
     rows = []
     for f in files:
-        try:
-            data = json.loads(Path(f).read_text())
-            hands = data["hands"]
-        except (OSError, ValueError, KeyError, TypeError):
-            raise DgzError(f"{f}: not a `dgz eval --json` result", "write one with dgz eval ... --json FILE") from None
-        rows.append((Path(f).stem, data.get("policy", "?"), set(data.get("training_hands", [])), hands))
+        from dgz_cli.cli.eval_table import load_eval_report
+
+        rep = load_eval_report(Path(f))  # schema-checked: a bad file is one line naming the file and field
+        hands = {h: r.model_dump() for h, r in rep.hands.items()}
+        rows.append((Path(f).stem, rep.policy, set(rep.training_hands), hands))
     trained = set().union(*(tr for _, _, tr, _ in rows))  # the protocol's split: any policy's training hands
     seen_cols = sorted({h for _, _, _, hs in rows for h in hs if h in trained})
     unseen_cols = sorted({h for _, _, _, hs in rows for h in hs if h not in trained})

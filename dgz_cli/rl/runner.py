@@ -114,9 +114,10 @@ class Trainer:
         if meta.reward_normalizer is not None:
             self.reward_norm.load(meta.reward_normalizer.model_dump())
         hist = self.out / "history.jsonl"
-        if hist.exists():
-            self.history = [json.loads(line) for line in hist.read_text().splitlines() if line.strip()]
-            self.history = [r for r in self.history if r.get("iteration", 0) <= self.iteration]
+        if hist.exists() or hist.is_symlink():
+            from dgz_cli.rl.history import read_history
+
+            self.history = read_history(hist, self.iteration)  # schema-checked: one line naming file and field
         torch.manual_seed(self.cfg.seed + self.iteration)
 
     # ------------------------------------------------------------------ loop

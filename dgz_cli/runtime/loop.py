@@ -53,6 +53,8 @@ class RunConfig:
     max_overruns: int = 5
     ramp_speed: float = 0.3  # rad/s
     safety: SafetyConfig = field(default_factory=SafetyConfig)
+    max_tracking_error: float = 1.0  # rad: |target − measured| above this ...
+    tracking_steps: int = 10  # ... for this many reads in a row while moving is a fault
 
 
 @dataclass
@@ -116,6 +118,7 @@ class Runner:
                 return None
             self._streak = 0
             self._check_stale(state)
+            self._check_feedback(state)
             self.res.measured = state.q
             return state
 
@@ -128,6 +131,29 @@ class Runner:
             self.driver.write_targets(target)
         except TRANSIENT as exc:
             self._transient(exc)
+
+    def _check_feedback(self, state) -> None:
+        """A non-finite reading, or a joint that does not follow its target (max |target − measured| above
+        ``max_tracking_error`` for ``tracking_steps`` reads in a row while moving), stops the run naming the joint."""
+        q = np.asarray(state.q, dtype=float).reshape(-1)
+        names = [r.joint for r in self.spec.joints]
+        bad = np.flatnonzero(~np.isfinite(q))
+        if bad.size:
+            i = int(bad[0])
+            raise HardwareError(f"{self.driver.port}: joint '{names[i] if i < len(names) else i}' reads {q[i]} "
+                                "(not a finite position)", "check the hand's wiring and firmware; the reading "
+                                "came from the device, not from the policy")
+        if self.cfg.dry_run or self._prev_written is None or not self._moving or q.shape != self._prev_written.shape:
+            self._tracking = 0
+            return
+        err = np.abs(self._prev_written - q)
+        self._tracking = getattr(self, "_tracking", 0) + 1 if float(err.max()) > self.cfg.max_tracking_error else 0
+        if self._tracking >= self.cfg.tracking_steps:
+            i = int(np.argmax(err))
+            raise HardwareError(f"{self.driver.port}: joint '{names[i]}' does not follow its target: "
+                                f"|target − measured| = {err[i]:.3f} rad > {self.cfg.max_tracking_error:g} rad for "
+                                f"{self._tracking} reads in a row", "check that the joint is not blocked or "
+                                "unpowered (torque on, supply voltage) and that the hand file's offsets are right")
 
     def _check_stale(self, state) -> None:
         if self.cfg.dry_run or not state.fingerprint:
