@@ -465,3 +465,539 @@ def test_onboard_summary_prints_urdf_names_literally(name: str, tmp_path: Path):
     r = dgz(tmp_path, "onboard", "hand.urdf", "-o", "out.yaml")
     assert_no_traceback(r)
     assert name in r.stdout and "❌" not in r.text, _describe(r)
+
+
+# --------------------------------------------------------------------------------------------
+# Output paths: -o equal to the input, unwritable targets, failed runs leave nothing behind
+# --------------------------------------------------------------------------------------------
+
+def _error_lines(r: Run) -> list[str]:
+    return [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+
+
+def assert_one_line_error(r: Run, *expect: str) -> str:
+    assert_no_traceback(r)
+    assert_nonzero_exit(r)
+    lines = _error_lines(r)
+    assert len(lines) == 1, "expected exactly one 'error:' line\n" + _describe(r)
+    for e in expect:
+        assert e in lines[0], f"the error line does not say {e!r}\n" + _describe(r)
+    return lines[0]
+
+
+@pytest.mark.parametrize("how", ["same-name", "through-symlink", "relative-dotted"])
+def test_onboard_refuses_output_equal_to_the_input(how: str, tmp_path: Path):
+    (tmp_path / "hand.urdf").write_text(GOOD)
+    target = {"same-name": "hand.urdf", "relative-dotted": "./sub/../hand.urdf", "through-symlink": "link.yaml"}[how]
+    (tmp_path / "sub").mkdir()
+    if how == "through-symlink":
+        os.symlink("hand.urdf", tmp_path / "link.yaml")
+    r = dgz(tmp_path, "onboard", "hand.urdf", "-o", target)
+    assert_one_line_error(r, "input")
+    assert (tmp_path / "hand.urdf").read_text() == GOOD, "the input URDF was overwritten"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], "temp files left behind"
+
+
+LONG = "x" * 300 + ".out"
+BAD_TARGETS = {"a-folder": "adir", "dev-full": "/dev/full", "too-long-name": LONG}
+
+
+def _bad_target(tmp_path: Path, kind: str) -> str:
+    (tmp_path / "adir").mkdir(exist_ok=True)
+    return BAD_TARGETS[kind]
+
+
+def _listing(tmp_path: Path) -> list[str]:
+    return sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+
+
+@pytest.mark.parametrize("kind", list(BAD_TARGETS))
+def test_onboard_unwritable_output_is_one_line(kind: str, tmp_path: Path):
+    (tmp_path / "hand.urdf").write_text(GOOD)
+    target = _bad_target(tmp_path, kind)
+    before = _listing(tmp_path)
+    r = dgz(tmp_path, "onboard", "hand.urdf", "-o", target)
+    assert_one_line_error(r, "cannot write")
+    assert _listing(tmp_path) == before, "something was left behind"
+
+
+@pytest.mark.parametrize("kind", list(BAD_TARGETS))
+def test_scene_unwritable_output_is_one_line(kind: str, tmp_path: Path):
+    target = _bad_target(tmp_path, kind)
+    r = dgz(tmp_path, "scene", "--hand", "dgz_tri", "--object", "sphere", "-o", target)
+    assert_one_line_error(r, "cannot write")
+    assert _listing(tmp_path) == ["adir"]
+
+
+@pytest.mark.parametrize("kind", list(BAD_TARGETS))
+def test_show_png_unwritable_output_is_one_line(kind: str, tmp_path: Path):
+    target = _bad_target(tmp_path, kind)
+    r = dgz(tmp_path, "show", "dgz_tri", "--png", target)
+    assert_one_line_error(r, "cannot write")
+    assert _listing(tmp_path) == ["adir"]
+
+
+@pytest.mark.parametrize("option", ["--json", "--csv"])
+@pytest.mark.parametrize("kind", list(BAD_TARGETS))
+def test_eval_unwritable_output_is_one_line(kind: str, option: str, tmp_path: Path):
+    target = _bad_target(tmp_path, kind)
+    r = dgz(tmp_path, "eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1", option, target)
+    assert_one_line_error(r, "cannot write")
+    assert _listing(tmp_path) == ["adir"]
+
+
+@pytest.mark.parametrize("kind", list(BAD_TARGETS))
+def test_deploy_unwritable_log_is_one_line(kind: str, tmp_path: Path):
+    target = _bad_target(tmp_path, kind)
+    r = dgz(tmp_path, "deploy", "--hand", "sim", "--policy", "scripted", "--log", target)
+    assert_one_line_error(r, "--log")
+    assert _listing(tmp_path) == ["adir"]
+
+
+@pytest.mark.parametrize("kind", ["a-file", "under-dev-full", "too-long-name"])
+def test_train_unusable_out_is_one_line_and_nothing_is_built(kind: str, tmp_path: Path):
+    (tmp_path / "afile").write_text("keep me")
+    target = {"a-file": "afile", "under-dev-full": "/dev/full/run", "too-long-name": LONG}[kind]
+    r = dgz(tmp_path, "train", "--hands", "dgz_tri", "--objects", "sphere", "--iterations", "1", "--out", target)
+    assert_one_line_error(r, "--out")
+    assert r.seconds < 30, f"took {r.seconds:.1f}s: the env was built before the --out check"
+    assert _listing(tmp_path) == ["afile"] and (tmp_path / "afile").read_text() == "keep me"
+
+
+# --------------------------------------------------------------------------------------------
+# Schema validation: eval --table files, --replay step logs, history.jsonl on --resume
+# --------------------------------------------------------------------------------------------
+
+GOOD_TABLE = {"policy": "p", "training_hands": ["a"], "hands": {"a": {"success_rate": 0.5, "episodes": 10},
+                                                                "b": {"success_rate": 0.25, "episodes": 10}}}
+
+
+def _table_with(**change) -> str:
+    import copy
+    import json
+
+    data = copy.deepcopy(GOOD_TABLE)
+    for key, value in change.items():
+        if key == "rate_a":
+            data["hands"]["a"]["success_rate"] = value
+        elif key == "episodes_a":
+            data["hands"]["a"]["episodes"] = value
+        elif value is ...:
+            del data[key]
+        else:
+            data[key] = value
+    return json.dumps(data)
+
+
+TABLE_CASES = [
+    pytest.param("not json {", "not JSON", id="not-json"),
+    pytest.param("", "not JSON", id="empty"),
+    pytest.param("[1, 2]", "top level", id="top-level-list"),
+    pytest.param('"text"', "top level", id="top-level-string"),
+    pytest.param(_table_with(hands=...), "'hands'", id="no-hands"),
+    pytest.param(_table_with(hands=[1, 2]), "'hands'", id="hands-is-a-list"),
+    pytest.param(_table_with(hands={"a": 0.5}), "'hands.a'", id="hand-is-a-number"),
+    pytest.param(_table_with(rate_a=float("nan")).replace("NaN", "NaN"), "success_rate", id="rate-nan"),
+    pytest.param(_table_with(rate_a=float("inf")), "success_rate", id="rate-inf"),
+    pytest.param(_table_with(rate_a=5.0), "success_rate", id="rate-above-1"),
+    pytest.param(_table_with(rate_a=-0.1), "success_rate", id="rate-negative"),
+    pytest.param(_table_with(rate_a="high"), "success_rate", id="rate-a-string"),
+    pytest.param(_table_with(rate_a=None), "success_rate", id="rate-null"),
+    pytest.param(_table_with(episodes_a=-3), "episodes", id="episodes-negative"),
+    pytest.param(_table_with(training_hands="a"), "training_hands", id="training-hands-a-string"),
+    pytest.param(_table_with(training_hands=[{"x": 1}]), "training_hands", id="training-hands-objects"),
+    pytest.param(_table_with(policy="p" * 500), "policy", id="policy-name-huge"),
+    pytest.param(_table_with(policy=["x"]), "policy", id="policy-a-list"),
+    pytest.param("[" * 100000 + "]" * 100000, "not JSON", id="deeply-nested"),
+]
+
+
+@pytest.mark.parametrize("text, expect", TABLE_CASES)
+def test_eval_table_refuses_bad_result_files(text: str, expect: str, tmp_path: Path):
+    (tmp_path / "good.json").write_text(json_dumps(GOOD_TABLE))
+    (tmp_path / "bad.json").write_text(text)
+    r = dgz(tmp_path, "eval", "--table", "good.json", "--table", "bad.json")
+    line = assert_one_line_error(r, "bad.json", expect)
+    assert "[" * 50 not in line
+
+
+@pytest.mark.parametrize("what", ["folder", "dev-zero", "missing", "fifo"])
+def test_eval_table_refuses_non_regular_files(what: str, tmp_path: Path):
+    target = {"folder": "d", "dev-zero": "/dev/zero", "missing": "nope.json", "fifo": "f.json"}[what]
+    if what == "folder":
+        (tmp_path / "d").mkdir()
+    if what == "fifo":
+        os.mkfifo(tmp_path / "f.json")
+    r = dgz(tmp_path, "eval", "--table", target)
+    assert_one_line_error(r, target)
+    assert r.seconds < 30
+
+
+def test_eval_table_accepts_a_good_file(tmp_path: Path):
+    (tmp_path / "good.json").write_text(json_dumps(GOOD_TABLE))
+    r = dgz(tmp_path, "eval", "--table", "good.json")
+    assert r.code == 0, _describe(r)
+    assert "0.50" in r.stdout
+
+
+def json_dumps(obj) -> str:
+    import json
+
+    return json.dumps(obj)
+
+
+HEADER = {"type": "header", "hand": "sim", "spec": "dgz_tri", "joints": ["j0", "j1"], "rate_hz": 20.0}
+
+
+def _log(*records) -> str:
+    import json
+
+    return "".join((r if isinstance(r, str) else json.dumps(r)) + "\n" for r in records)
+
+
+def _step(**fields) -> dict:
+    return {"type": "step", "k": 0, "phase": "grasp", "target": [0.1, 0.2], "measured": [0.1, 0.2], **fields}
+
+
+REPLAY_CASES = [
+    pytest.param(_log("not json"), "not a JSON line", id="not-json"),
+    pytest.param("", "no header", id="empty"),
+    pytest.param(_log(_step()), "before the header", id="step-before-header"),
+    pytest.param(_log([1, 2]), "not a step-log record", id="record-a-list"),
+    pytest.param(_log({"type": "weird"}), "not a step-log record", id="unknown-type"),
+    pytest.param(_log({"k": 1}), "not a step-log record", id="no-type"),
+    pytest.param(_log({**HEADER, "joints": []}), "joints", id="header-no-joints"),
+    pytest.param(_log({**HEADER, "joints": "j0"}), "joints", id="header-joints-a-string"),
+    pytest.param(_log({**HEADER, "joints": [1, 2]}), "joints", id="header-joints-numbers"),
+    pytest.param(_log({**HEADER, "joints": ["j"] * 1000}), "joints", id="header-1000-joints"),
+    pytest.param(_log({k: v for k, v in HEADER.items() if k != "spec"}), "spec", id="header-no-spec"),
+    pytest.param(_log({**HEADER, "spec": ["x"]}), "spec", id="header-spec-a-list"),
+    pytest.param(_log({**HEADER, "rate_hz": 0}), "rate_hz", id="rate-zero"),
+    pytest.param(_log({**HEADER, "rate_hz": -20}), "rate_hz", id="rate-negative"),
+    pytest.param(_log({**HEADER, "rate_hz": "fast"}), "rate_hz", id="rate-a-string"),
+    pytest.param(_log(HEADER).replace("20.0", "Infinity"), "rate_hz", id="rate-inf"),
+    pytest.param(_log(HEADER).replace("20.0", "NaN"), "rate_hz", id="rate-nan"),
+    pytest.param(_log(HEADER, HEADER), "second header", id="two-headers"),
+    pytest.param(_log(HEADER, _step(target=[0.1])), "target", id="target-too-short"),
+    pytest.param(_log(HEADER, _step(target=[0.1, 0.2, 0.3])), "target", id="target-too-long"),
+    pytest.param(_log(HEADER, _step(target=[0.1, 1e300])), "target", id="target-huge"),
+    pytest.param(_log(HEADER, _step(target=[0.1, 0.2])).replace("[0.1, 0.2], \"measured\"", "[NaN, 0.2], \"measured\""),
+                 "target", id="target-nan"),
+    pytest.param(_log(HEADER, _step(target=[0.1, "a"])), "target", id="target-a-string"),
+    pytest.param(_log(HEADER, _step(target={"j0": 1})), "target", id="target-a-dict"),
+    pytest.param(_log(HEADER, _step(target=7)), "target", id="target-a-number"),
+    pytest.param(_log(HEADER, _step(measured=[0.1, "x"])), "measured", id="measured-a-string"),
+    pytest.param(_log(HEADER, _step(measured=[0.1])), "measured", id="measured-too-short"),
+    pytest.param(_log(HEADER, _step(), {"type": "end", "reason": ["x"]}), "reason", id="end-reason-a-list"),
+    pytest.param(_log(HEADER, _step(), "{truncated"), "not a JSON line", id="truncated-last-line"),
+    pytest.param(_log({**HEADER, "spec": "../../../../etc/passwd"}), ("no such", "not", "outside", "leaves"),
+                 id="spec-path-outside"),
+    pytest.param(_log({**HEADER, "spec": "[link=file:///x]y[/link]"}), "[link=file:///x]y[/link]",
+                 id="spec-name-with-markup"),
+]
+
+
+@pytest.mark.parametrize("text, expect", REPLAY_CASES)
+def test_replay_refuses_bad_step_logs(text: str, expect, tmp_path: Path):
+    (tmp_path / "bad.jsonl").write_text(text)
+    r = dgz(tmp_path, "deploy", "--replay", "bad.jsonl")
+    line = assert_one_line_error(r)
+    expect = (expect,) if isinstance(expect, str) else expect
+    assert any(e in line for e in expect), _describe(r)
+    assert "root:" not in r.text  # /etc/passwd is never echoed
+
+
+@pytest.mark.parametrize("what", ["folder", "dev-zero", "missing", "fifo"])
+def test_replay_refuses_non_regular_logs(what: str, tmp_path: Path):
+    target = {"folder": "d", "dev-zero": "/dev/zero", "missing": "nope.jsonl", "fifo": "f.jsonl"}[what]
+    if what == "folder":
+        (tmp_path / "d").mkdir()
+    if what == "fifo":
+        os.mkfifo(tmp_path / "f.jsonl")
+    r = dgz(tmp_path, "deploy", "--replay", target)
+    assert_one_line_error(r, target)
+    assert r.seconds < 30
+
+
+HISTORY_CASES = [
+    pytest.param('{"iteration": 1, "loss": NaN}\n', "'loss'", id="nan"),
+    pytest.param('{"iteration": 1, "loss": Infinity}\n', "'loss'", id="inf"),
+    pytest.param('{"iteration": 1, "loss": -Infinity}\n', "'loss'", id="minus-inf"),
+    pytest.param('{"iteration": 1, "loss": 1e300}\n', "'loss'", id="huge"),
+    pytest.param('{"iteration": 1, "loss": "low"}\n', "'loss'", id="a-string"),
+    pytest.param('{"iteration": 1, "loss": [1]}\n', "'loss'", id="a-list"),
+    pytest.param('{"iteration": 1, "loss": {"a": 1}}\n', "'loss'", id="a-dict"),
+    pytest.param('{"loss": 1}\n', "'iteration'", id="no-iteration"),
+    pytest.param('{"iteration": "1"}\n', "'iteration'", id="iteration-a-string"),
+    pytest.param('{"iteration": 1.5}\n', "'iteration'", id="iteration-a-float"),
+    pytest.param('{"iteration": -1}\n', "'iteration'", id="iteration-negative"),
+    pytest.param('{"iteration": 1}\n{"iteration": 1}\n', "does not follow", id="iteration-repeated"),
+    pytest.param('{"iteration": 2}\n{"iteration": 1}\n', "does not follow", id="iteration-backwards"),
+    pytest.param("[1, 2]\n", "not a history row", id="a-list-row"),
+    pytest.param('{"iteration": 1}\n{oops\n', "not a JSON line", id="truncated"),
+    pytest.param('{"iteration": 1, "": 1}\n', "field", id="empty-key"),
+    pytest.param('{"iteration": 1, "' + "k" * 200 + '": 1}\n', "field", id="huge-key"),
+    pytest.param("[" * 100000 + "\n", "not a JSON line", id="deeply-nested"),
+]
+
+
+@pytest.mark.parametrize("text, expect", HISTORY_CASES)
+def test_resume_history_is_schema_checked(text: str, expect: str, tmp_path: Path):
+    from dgz_cli.rl.history import read_history
+    from dgz_cli.spec.errors import DgzError
+
+    (tmp_path / "history.jsonl").write_text(text)
+    with pytest.raises(DgzError) as info:
+        read_history(tmp_path / "history.jsonl", 10)
+    msg = info.value.message
+    assert "history.jsonl" in msg and expect in msg and "\n" not in msg, msg
+
+
+def test_resume_history_good_rows_are_kept_up_to_the_checkpoint(tmp_path: Path):
+    from dgz_cli.rl.history import read_history
+
+    (tmp_path / "history.jsonl").write_text('{"iteration": 1, "loss": 0.5, "success_rate": null}\n'
+                                            '{"iteration": 2, "loss": 0.4}\n{"iteration": 3, "loss": 0.3}\n')
+    assert [r["iteration"] for r in read_history(tmp_path / "history.jsonl", 2)] == [1, 2]
+
+
+@pytest.mark.parametrize("bad", ["nan-history", "garbage-checkpoint"])
+def test_failed_resume_is_one_line_and_leaves_nothing_behind(bad: str, tmp_path: Path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "policies" / "dgz-cpu-first", run)
+    if bad == "nan-history":
+        (run / "history.jsonl").write_text('{"iteration": 1, "loss": NaN}\n')
+    else:
+        (run / "checkpoint.yaml").write_text("iteration: [\n")
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    r = dgz(tmp_path, "train", "--resume", "--out", "run", "--hands", "dgz_tri", "--objects", "sphere",
+            "--repeat", "1")
+    line = assert_one_line_error(r)
+    assert ("history.jsonl" in line) if bad == "nan-history" else ("checkpoint" in line), _describe(r)
+    after = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    assert after == before, "the failed resume changed or added files (a tb/events file?)"
+    assert not (run / "tb").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# Loaded specs: lint catches them, and every consumer refuses them on load with one line
+# --------------------------------------------------------------------------------------------
+
+def _set(path: str, value):
+    """A tamper that sets ``path`` (dotted; integers index lists) to ``value``."""
+    def tamper(s: dict) -> dict:
+        *head, last = [int(p) if p.isdigit() else p for p in path.split(".")]
+        obj = s
+        for p in head:
+            obj = obj[p]
+        obj[int(last) if isinstance(obj, list) else last] = value
+        return s
+    return tamper
+
+
+def _first_finger_node(s: dict) -> str:
+    return next(n["id"] for n in s["nodes"] if n["parent"] is not None)
+
+
+def _row_node(value):
+    return _set("joints.0.node", value)
+
+
+def _dup_node(s: dict) -> dict:
+    s["nodes"].append(dict(s["nodes"][-1]))
+    return s
+
+
+def _dup_row(s: dict) -> dict:
+    s["joints"].append(dict(s["joints"][0]))
+    return s
+
+
+def _swap_limits(s: dict) -> dict:
+    r = s["joints"][0]
+    r["lower"], r["upper"] = 1.0, -1.0
+    return s
+
+
+def _unknown_parent(s: dict) -> dict:
+    s["nodes"][1]["parent"] = "no_such_node"
+    return s
+
+
+def _mimic_unknown_source(s: dict) -> dict:
+    s["mimic"] = [dict(joint="m0", source="no_such_joint", multiplier=1.0, offset=0.0, node=None)]
+    return s
+
+
+def _mimic_unknown_node(s: dict) -> dict:
+    s["mimic"] = [dict(joint="m0", source=s["joints"][0]["joint"], multiplier=1.0, offset=0.0, node="ghost")]
+    return s
+
+
+def _mask_unknown_node(s: dict) -> dict:
+    s["activation_mask"]["ghost"] = [1, 0, 0]
+    return s
+
+
+def _mask_row(row):
+    def tamper(s: dict) -> dict:
+        s["activation_mask"][next(iter(s["activation_mask"]))] = row
+        return s
+    return tamper
+
+
+def _features_unknown_node(s: dict) -> dict:
+    s["features"]["values"]["ghost"] = [0.0] * 27
+    return s
+
+
+def _command_order(order):
+    def tamper(s: dict) -> dict:
+        names = [r["joint"] for r in s["joints"]]
+        s["overrides"]["command_order"] = order(names)
+        return s
+    return tamper
+
+
+def _finger_axis_equals_normal(s: dict) -> dict:
+    s["palm"]["finger_axis"] = list(s["palm"]["normal"])
+    return s
+
+
+def _lateral_flipped(s: dict) -> dict:
+    s["palm"]["lateral"] = [-x for x in s["palm"]["lateral"]]
+    return s
+
+
+NAN, INF = float("nan"), float("inf")
+SPEC_CASES = [
+    pytest.param(_set("palm.normal", [0.0, 0.0, 0.0]), "palm.normal", id="palm-normal-zero"),
+    pytest.param(_set("palm.normal", [NAN, 0.0, 1.0]), "palm.normal", id="palm-normal-nan"),
+    pytest.param(_set("palm.normal", [NAN, NAN, NAN]), "palm.normal", id="palm-normal-all-nan"),
+    pytest.param(_set("palm.normal", [INF, 0.0, 0.0]), "palm.normal", id="palm-normal-inf"),
+    pytest.param(_set("palm.normal", [0.0, 0.0, 2.0]), "unit vector", id="palm-normal-length-2"),
+    pytest.param(_set("palm.normal", [0.0, 1.0]), "palm.normal", id="palm-normal-two-numbers"),
+    pytest.param(_set("palm.normal", "up"), "palm.normal", id="palm-normal-a-string"),
+    pytest.param(_set("palm.finger_axis", [0.0, 0.0, 0.0]), "palm.finger_axis", id="finger-axis-zero"),
+    pytest.param(_set("palm.lateral", [1e-9, 0.0, 0.0]), "palm.lateral", id="lateral-tiny"),
+    pytest.param(_finger_axis_equals_normal, "orthogonal", id="finger-axis-along-normal"),
+    pytest.param(_lateral_flipped, "normal × finger_axis", id="lateral-flipped"),
+    pytest.param(_set("palm.center", [1e9, 0.0, 0.0]), "palm.center", id="palm-center-huge"),
+    pytest.param(_set("palm.center", [NAN, 0.0, 0.0]), "palm.center", id="palm-center-nan"),
+    pytest.param(_set("nodes.1.anchor_point", [NAN, 0.0, 0.0]), "anchor_point", id="anchor-point-nan"),
+    pytest.param(_row_node("no_such_node"), "unknown node 'no_such_node'", id="mh-row-unknown-node"),
+    pytest.param(_row_node(""), "unknown node", id="mh-row-empty-node"),
+    pytest.param(_set("joints.0.node", None), "joints.0.node", id="mh-row-null-node"),
+    pytest.param(_unknown_parent, "unknown parent 'no_such_node'", id="node-unknown-parent"),
+    pytest.param(_dup_node, "more than once", id="duplicate-node-id"),
+    pytest.param(_dup_row, "more than once", id="duplicate-mh-row"),
+    pytest.param(_swap_limits, "lower 1.0 > upper -1.0", id="lower-above-upper"),
+    pytest.param(_set("joints.0.lower", NAN), "finite", id="lower-nan"),
+    pytest.param(_set("joints.0.upper", INF), "finite", id="upper-inf"),
+    pytest.param(_set("joints.0.velocity", NAN), "finite", id="velocity-nan"),
+    pytest.param(_set("joints.0.primitive", "TWIST"), "primitive", id="unknown-primitive"),
+    pytest.param(_set("joints.0.sign", 0), "sign", id="sign-zero"),
+    pytest.param(_mimic_unknown_source, "not in M_h", id="mimic-unknown-source"),
+    pytest.param(_mimic_unknown_node, "unknown node 'ghost'", id="mimic-unknown-node"),
+    pytest.param(_mask_unknown_node, "unknown node 'ghost'", id="mask-unknown-node"),
+    pytest.param(_mask_row([1, 2, 0]), "0/1", id="mask-row-not-bits"),
+    pytest.param(_mask_row([1, 0]), "0/1", id="mask-row-two-flags"),
+    pytest.param(_features_unknown_node, "unknown node 'ghost'", id="features-unknown-node"),
+    pytest.param(_command_order(lambda n: n[:-1] + ["no_such_joint"]), "'no_such_joint' is not an actuated joint",
+                 id="command-order-unknown-joint"),
+    pytest.param(_set("nodes.1.finger", "tentacle"), "finger", id="unknown-finger-class"),
+]
+
+
+@pytest.mark.parametrize("tamper, expect", SPEC_CASES)
+def test_lint_catches_broken_loaded_specs(tamper, expect: str, good_spec: dict, tmp_path: Path):
+    test_lint_rejects_tampered_spec(tamper, expect, good_spec, tmp_path)
+
+
+CONSUMER_CASES = [c for c in SPEC_CASES if c.id in ("palm-normal-zero", "palm-normal-nan", "mh-row-unknown-node",
+                                                     "lower-above-upper", "mask-unknown-node")]
+
+
+@pytest.mark.parametrize("tamper, expect", CONSUMER_CASES)
+@pytest.mark.parametrize("command", ["show", "scene", "eval"])
+def test_consumers_refuse_broken_specs_on_load(command: str, tamper, expect: str, good_spec: dict, tmp_path: Path):
+    import copy
+
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(tamper(copy.deepcopy(good_spec)), sort_keys=False))
+    args = {"show": ("show", "bad.yaml"), "scene": ("scene", "--hand", "bad.yaml", "--object", "sphere", "-o", "s.xml"),
+            "eval": ("eval", "--hand", "bad.yaml", "--objects", "sphere", "--trials", "1")}[command]
+    r = dgz(tmp_path, *args)
+    assert_one_line_error(r, "bad.yaml", expect)
+    assert not (tmp_path / "s.xml").exists()
+
+
+@pytest.mark.parametrize("reference", ["../outside/secret.urdf", "dgz://hands/../../../../../etc/passwd", "/dev/zero",
+                                       "FIFO", "hands"])
+def test_lint_fails_on_a_provenance_path_outside_its_root_or_not_a_file(reference: str, good_spec: dict,
+                                                                         tmp_path: Path):
+    import copy
+
+    root = _make_root(tmp_path)
+    if reference == "FIFO":
+        reference = str(tmp_path / "fifo.urdf")
+        os.mkfifo(reference)
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(_provenance(reference)(copy.deepcopy(good_spec)), sort_keys=False))
+    r = dgz(tmp_path, "lint", "bad.yaml", "--asset-root", str(root))
+    assert_no_traceback(r)
+    assert any("provenance.urdf" in ln for ln in _lint_error_lines(r)), _describe(r)
+    assert_nonzero_exit(r)
+
+
+def test_lint_only_warns_when_the_urdf_is_merely_absent(good_spec: dict, tmp_path: Path):
+    import copy
+
+    root = _make_root(tmp_path)
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(_provenance("hands/h/nope.urdf")(copy.deepcopy(good_spec)),
+                                                    sort_keys=False))
+    r = dgz(tmp_path, "lint", "s.yaml", "--asset-root", str(root))
+    assert r.code == 0 and "warning" in r.stdout and "URDF not checked" in r.stdout, _describe(r)
+
+
+# --------------------------------------------------------------------------------------------
+# Misleading messages: name the real cause
+# --------------------------------------------------------------------------------------------
+
+def _strip_collision(text: str, links: list[str]) -> str:
+    import re
+
+    for link in links:
+        text = re.sub(r'(<link name="%s">.*?)<collision>.*?</collision>' % link, r"\1", text, flags=re.S)
+    return text
+
+
+@pytest.mark.parametrize("links, expect", [
+    (["b_prox", "b_dist"], "finger 'middle' has no collision geometry"),
+    (["a_prox", "a_dist"], "has no collision geometry (links a_dist, a_prox)"),
+    (["a_prox", "a_dist", "b_prox", "b_dist"], "has no collision geometry"),
+    (["palm", "a_prox", "a_dist", "b_prox", "b_dist"], "the hand has no collision geometry"),
+], ids=["one-finger", "other-finger", "all-fingers", "whole-hand"])
+def test_onboard_names_missing_collision_geometry(links, expect: str, tmp_path: Path):
+    (tmp_path / "hand.urdf").write_text(_strip_collision(GOOD, links))
+    r = dgz(tmp_path, "onboard", "hand.urdf", "-o", "out.yaml")
+    assert_no_traceback(r)
+    errors = [ln for ln in r.stdout.splitlines() if ln.startswith("error")]
+    assert any(expect in ln for ln in errors), _describe(r)
+    assert not any("functional check" in ln for ln in errors), "the consequence is reported, not the cause"
+    assert not (tmp_path / "out.yaml").exists()
+    assert_nonzero_exit(r)
+
+
+@pytest.mark.parametrize("order, expect", [
+    ("[a_j1, a_j2, b_j1, b_jX]", "names 'b_jX', which is not an actuated joint"),
+    ("[a_j1, a_j2, b_j1, b_j1]", "lists 'b_j1' more than once"),
+    ("[a_j1, a_j2, b_j1]", "does not list 'b_j2'"),
+    ("[a_j1, a_j2, b_j1, b_j2, extra]", "names 'extra'"),
+], ids=["unknown", "duplicate", "missing", "extra"])
+def test_onboard_names_the_bad_command_order_entry(order: str, expect: str, tmp_path: Path):
+    (tmp_path / "hand.urdf").write_text(GOOD)
+    (tmp_path / "ov.yaml").write_text(f"command_order: {order}\n")
+    r = dgz(tmp_path, "onboard", "hand.urdf", "--overrides", "ov.yaml", "-o", "out.yaml")
+    assert_one_line_error(r, "command_order", expect)
+    assert not (tmp_path / "out.yaml").exists()

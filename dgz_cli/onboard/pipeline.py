@@ -89,10 +89,13 @@ def onboard(urdf: Path, name: str, asset_root: Path | None = None, palm_link: st
     actuated = [j.name for j in kin.actuated if j.name not in st.excluded_joints]
     command = list(overrides.command_order) if overrides.command_order else actuated
     if sorted(command) != sorted(actuated):
-        missing = sorted(set(actuated) - set(command)) or sorted(set(command) - set(actuated))
-        raise OnboardError(f"overrides: command_order does not list every actuated joint exactly once "
-                           f"(check '{missing[0] if missing else 'duplicates'}')",
-                           "list each actuated joint of the URDF once")
+        unknown = [j for j in command if j not in actuated]
+        missing = [j for j in actuated if j not in command]
+        twice = sorted({j for j in command if command.count(j) > 1})
+        what = (f"names '{unknown[0]}', which is not an actuated joint of the URDF" if unknown else
+                f"lists '{twice[0]}' more than once" if twice else f"does not list '{missing[0]}'")
+        raise OnboardError(f"overrides: command_order {what}", "list each actuated joint of the URDF exactly once "
+                           f"(actuated: {', '.join(actuated[:8])}{', ...' if len(actuated) > 8 else ''})")
     rows = []
     for jname in command:
         j, r = kin.joints[jname], responses[jname]

@@ -11,6 +11,22 @@ from dgz_cli.spec.lint import Finding, lint_spec
 from dgz_cli.spec.models import HandSpec
 
 
+_REFUSED = ("leaves ", "not a regular file", "NUL character")
+MAX_URDF_BYTES = 64 * 1024 * 1024
+
+
+def _sha256(path: Path, limit: int = MAX_URDF_BYTES) -> str:
+    """sha256 of a file read in 1 MB chunks, at most ``limit`` bytes (a larger file is refused)."""
+    h, total = hashlib.sha256(), 0
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            total += len(chunk)
+            if total > limit:
+                raise DgzError(f"more than the {limit >> 20} MB dgz reads", "is this the right file?")
+            h.update(chunk)
+    return h.hexdigest()
+
+
 def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None, poser=None) -> list[Finding]:
     """``poser``: the hand already compiled from this URDF (by ``dgz onboard``), reused if it is the same file."""
     from dgz_cli.onboard.urdf import load_kinematics
@@ -19,9 +35,17 @@ def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None,
     try:
         urdf = resolve_urdf(spec.provenance.urdf, asset_root)
     except DgzError as exc:
-        return [Finding("warning", "provenance.urdf", f"URDF not checked: {exc.message}", exc.hint)]
+        # a name that leaves its root or names a device/FIFO/folder is an attack or a broken spec: an error;
+        # a URDF that is merely absent (assets not installed here) only leaves the URDF checks undone
+        refused = any(s in exc.message for s in _REFUSED)
+        return [Finding("error" if refused else "warning", "provenance.urdf",
+                        exc.message if refused else f"URDF not checked: {exc.message}", exc.hint)]
     reonboard = f"dgz onboard {urdf} --name {spec.name} -o {spec_path}"
-    sha = hashlib.sha256(urdf.read_bytes()).hexdigest()
+    try:
+        sha = _sha256(urdf)
+    except (OSError, DgzError) as exc:
+        return [Finding("error", "provenance.urdf", f"{urdf}: cannot be read ({getattr(exc, 'message', None) or exc})",
+                        "point provenance.urdf at the hand's regular URDF file")]
     if sha != spec.provenance.urdf_sha256:
         out.append(Finding("warning", "provenance.urdf_sha256", f"{urdf} changed since this spec was written",
                            f"re-onboard: {reonboard}"))
@@ -61,9 +85,40 @@ def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None,
         from dgz_cli.onboard.compile import Poser, compile_model
         from dgz_cli.onboard.functional import functional_check
 
-        for problem in functional_check(spec, poser if same else Poser(kin, compile_model(kin))):
+        poser = poser if same else Poser(kin, compile_model(kin))
+        missing = _without_collision(spec, kin, poser)
+        out += missing
+        if missing:  # the functional check would only report its consequence ("+FLEX does not move ...")
+            return out
+        for problem in functional_check(spec, poser):
             out.append(Finding("error", "joints", f"functional check: {problem}",
                                "correct that finger's primitive/sign in an --overrides file, then re-onboard"))
+    return out
+
+
+def _without_collision(spec: HandSpec, kin, poser) -> list[Finding]:
+    """Fingers (or the whole hand) whose links carry no collision geometry: they cannot touch anything."""
+    model = poser.model
+
+    def colliding(link: str) -> bool:
+        body = poser.body.get(link)
+        if body is None:
+            return False
+        start, num = int(model.body_geomadr[body]), int(model.body_geomnum[body])
+        return any(model.geom_contype[g] or model.geom_conaffinity[g] for g in range(start, start + num))
+
+    fix = ("add <collision> geometry to those links in the URDF (the simulator grasps with collision geometry "
+           "only; visual meshes are discarded)")
+    if not any(colliding(link) for link in kin.links):
+        return [Finding("error", "(URDF)", f"the hand has no collision geometry: none of the {len(kin.links)} links "
+                        "of the URDF has a <collision> element", fix)]
+    out = []
+    for finger in dict.fromkeys(n.finger for n in spec.nodes if n.finger != "wrist"):
+        links = {n.anchor_link for n in spec.nodes if n.finger == finger}
+        links |= {kin.joints[j].child for n in spec.nodes if n.finger == finger for j in n.joints if j in kin.joints}
+        if not any(colliding(link) for link in links):
+            out.append(Finding("error", "nodes", f"finger '{finger}' has no collision geometry (links "
+                               f"{', '.join(sorted(links))})", fix))
     return out
 
 

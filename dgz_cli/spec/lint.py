@@ -25,6 +25,22 @@ def lint_spec(spec: HandSpec) -> list[Finding]:
     def err(field: str, msg: str, fix: str) -> None:
         out.append(Finding("error", field, msg, fix))
 
+    p = spec.palm
+    vecs = {k: getattr(p, k) for k in ("normal", "finger_axis", "lateral")}
+    if not all(len(v) == 3 and all(math.isfinite(x) for x in v) for v in vecs.values()):
+        err("palm", "the palm frame has a non-finite or malformed vector", "re-run `dgz onboard`")
+    else:
+        for k, v in vecs.items():
+            norm = math.sqrt(sum(x * x for x in v))
+            if abs(norm - 1.0) > 1e-2:
+                err(f"palm.{k}", f"palm {k} {v} is not a unit vector (length {norm:.4g})",
+                    "re-run `dgz onboard` (or --palm-link) to identify the palm frame")
+        n, f, l = vecs["normal"], vecs["finger_axis"], vecs["lateral"]
+        cross = [n[1] * f[2] - n[2] * f[1], n[2] * f[0] - n[0] * f[2], n[0] * f[1] - n[1] * f[0]]
+        if abs(sum(a * b for a, b in zip(n, f))) > 0.05:
+            err("palm.finger_axis", "the palm normal and finger axis are not orthogonal", "re-run `dgz onboard`")
+        elif max(abs(a - b) for a, b in zip(cross, l)) > 0.05:
+            err("palm.lateral", "palm lateral is not normal × finger_axis", "re-run `dgz onboard`")
     ids = [n.id for n in spec.nodes]
     dup = sorted({i for i in ids if ids.count(i) > 1})
     for i in dup:

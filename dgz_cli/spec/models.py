@@ -11,7 +11,8 @@ from enum import Enum
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 
 SCHEMA_VERSION = 1
@@ -27,7 +28,13 @@ FEATURE_NAMES = (
 )
 N_FEATURES = len(FEATURE_NAMES)  # 27
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Coord = Annotated[float, Field(allow_inf_nan=False, ge=-1e3, le=1e3)]  # finite, bounded (m, or unit vectors)
+Vec3 = Annotated[list[Coord], Field(min_length=3, max_length=3)]
+
+
+def _bad(message: str) -> PydanticCustomError:
+    """A validation error whose text is ``message`` as written (no "Value error, " prefix)."""
+    return PydanticCustomError("handspec", message)
 
 
 def rest_pose(lower, upper) -> np.ndarray:
@@ -74,6 +81,14 @@ class Palm(Frozen):
     center: Vec3 = Field(description="palm centre (centroid of its collision geometry), palm link frame")
     side: Literal["left", "right"]
 
+    @field_validator("normal", "finger_axis", "lateral")
+    @classmethod
+    def _unit(cls, v: list[float]) -> list[float]:
+        norm = float(np.linalg.norm(v))
+        if not abs(norm - 1.0) <= 1e-2:
+            raise _bad(f"must be a unit vector (its length is {norm:.4g}); re-run `dgz onboard` or fix the palm frame")
+        return v
+
 
 class Node(Frozen):
     id: str
@@ -109,6 +124,12 @@ class JointMap(Frozen):
         if v != v or v in (float("inf"), float("-inf")):
             raise ValueError("must be finite")
         return v
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "JointMap":
+        if self.lower > self.upper:
+            raise _bad(f"joint '{self.joint}': lower {self.lower} > upper {self.upper} (swap the limits)")
+        return self
 
 
 class MimicJoint(Frozen):
@@ -164,6 +185,65 @@ class HandSpec(Frozen):
     activation_mask: dict[str, list[int]] = Field(description="node id → [FLEX, ABD, ROT] ∈ {0,1}")
     features: Features
     overrides: Overrides = Field(default_factory=Overrides)
+
+    # Cross-references are checked on load, so every consumer (lint, scene, sim, hw, runtime) sees a spec whose
+    # names resolve: no KeyError anywhere downstream. Deeper consistency (mask = M_h, tree shape, the URDF) is lint's.
+    @field_validator("nodes")
+    @classmethod
+    def _node_ids(cls, nodes: list[Node]) -> list[Node]:
+        ids = [n.id for n in nodes]
+        for k, n in enumerate(nodes):
+            if ids.index(n.id) != k:
+                raise _bad(f"nodes[{k}].id: node id '{n.id}' is used more than once")
+            if n.parent is not None and n.parent not in ids:
+                raise _bad(f"nodes[{k}].parent: node '{n.id}' has unknown parent '{n.parent}'")
+        return nodes
+
+    @field_validator("joints")
+    @classmethod
+    def _rows(cls, rows: list[JointMap], info: ValidationInfo) -> list[JointMap]:
+        ids = {n.id for n in info.data.get("nodes") or []}
+        names = [r.joint for r in rows]
+        for k, r in enumerate(rows):
+            if names.index(r.joint) != k:
+                raise _bad(f"joints[{k}].joint: joint '{r.joint}' appears more than once in M_h")
+            if "nodes" in info.data and r.node not in ids:
+                raise _bad(f"joints[{k}].node: M_h row '{r.joint}' names unknown node '{r.node}'")
+        return rows
+
+    @field_validator("mimic")
+    @classmethod
+    def _mimic(cls, mimic: list[MimicJoint], info: ValidationInfo) -> list[MimicJoint]:
+        names = {r.joint for r in info.data.get("joints") or []}
+        ids = {n.id for n in info.data.get("nodes") or []}
+        for k, m in enumerate(mimic):
+            if "joints" in info.data and m.source not in names:
+                raise _bad(f"mimic[{k}].source: mimic joint '{m.joint}' follows '{m.source}', which is not in M_h")
+            if "nodes" in info.data and m.node is not None and m.node not in ids:
+                raise _bad(f"mimic[{k}].node: mimic joint '{m.joint}' names unknown node '{m.node}'")
+        return mimic
+
+    @field_validator("activation_mask")
+    @classmethod
+    def _mask(cls, mask: dict[str, list[int]], info: ValidationInfo) -> dict[str, list[int]]:
+        ids = {n.id for n in info.data.get("nodes") or []}
+        for nid, row in mask.items():
+            if "nodes" in info.data and nid not in ids:
+                raise _bad(f"activation_mask.{nid}: mask row for unknown node '{nid}'")
+            if len(row) != 3 or any(b not in (0, 1) for b in row):
+                raise _bad(f"activation_mask.{nid}: {row} is not three 0/1 flags [FLEX, ABD, ROT]")
+        return mask
+
+    @field_validator("overrides")
+    @classmethod
+    def _command_order(cls, ov: Overrides, info: ValidationInfo) -> Overrides:
+        names = [r.joint for r in info.data.get("joints") or []]
+        if ov.command_order is not None and "joints" in info.data:
+            unknown = [j for j in ov.command_order if j not in names]
+            if unknown:
+                raise _bad(f"overrides.command_order: '{unknown[0]}' is not an actuated joint of this spec "
+                           f"(M_h joints: {', '.join(names[:8])}{', ...' if len(names) > 8 else ''})")
+        return ov
 
     def rest_pose(self) -> np.ndarray:
         """(L,) rest pose in ``joints`` order: every joint at 0 clipped into its limits (the flat open hand)."""
