@@ -16,6 +16,7 @@ from dgz_cli.hw.modbus_rtu import BusStats
 from dgz_cli.hw.serial_port import IO_ERRORS, io_error
 
 HEADER = b"\xff\xff\xfd\x00"
+MAX_JUNK = 1024  # bytes skipped before a status header before the reply counts as garbage
 BROADCAST = 0xFE
 PING, READ, WRITE, SYNC_READ, SYNC_WRITE, FAST_SYNC_READ, STATUS = 0x01, 0x02, 0x03, 0x82, 0x83, 0x8A, 0x55
 ERRORS = {1: "result fail", 2: "instruction error", 3: "CRC error", 4: "data range error",
@@ -96,13 +97,32 @@ class DynamixelBus:
         return BusCrcError(f"{self.port}: {why} in the status packet from Dynamixel ID {dxl_id}",
                            "check the cable and connectors; another program may be using the bus")
 
+    def _find_header(self, dxl_id: int) -> bytes:
+        """The first 7 bytes of the next status packet. Bytes before its header (line noise, the tail of a
+        late reply) are skipped, as the ROBOTIS SDK does, up to ``MAX_JUNK`` of them."""
+        buf = bytearray(self._recv(7))
+        junk = 0
+        while (at := buf.find(HEADER)) < 0:
+            keep = next((k for k in (3, 2, 1) if buf.endswith(HEADER[:k])), 0)  # a header may be starting
+            junk += len(buf) - keep
+            del buf[:len(buf) - keep]
+            if junk > MAX_JUNK:
+                raise self._crc_error(dxl_id, f"no status header in {junk} bytes")
+            more = self._recv(1)
+            if not more:
+                raise self._timeout(dxl_id, bytes(buf)) if not junk else self._crc_error(
+                    dxl_id, f"{junk} byte(s) of noise and no status header")
+            buf += more
+        del buf[:at]
+        if len(buf) < 7:
+            buf += self._recv(7 - len(buf))
+        if len(buf) < 7:
+            raise self._timeout(dxl_id, bytes(buf))
+        return bytes(buf)
+
     def _receive_raw(self, dxl_id: int, stuffed: bool = True) -> tuple[int, bytes]:
         """One status packet → (id, body from the instruction byte on)."""
-        head = self._recv(7)
-        if len(head) < 7:
-            raise self._timeout(dxl_id, head)
-        if head[:4] != HEADER:
-            raise self._crc_error(dxl_id, f"bad header {head[:4].hex(' ')}")
+        head = self._find_header(dxl_id)
         length = struct.unpack("<H", head[5:7])[0]
         rest = self._recv(length)
         if len(rest) < length or length < 4:

@@ -27,6 +27,8 @@ from dgz_cli.hw.fakes.base import PtyFake, approach
 
 MODEL_XC330_T288 = 1220
 TORQUE, GOAL_POS, PRESENT_CURRENT, PRESENT_VEL, PRESENT_POS, HW_ERROR = 64, 116, 126, 128, 132, 70
+EEPROM_END = 64  # addresses below are EEPROM: writable only with torque off
+ACCESS_ERROR = 7  # status error: write to a locked/undefined address, read past the table
 
 
 class DynamixelFake(PtyFake):
@@ -70,9 +72,9 @@ class DynamixelFake(PtyFake):
                 return frame
             del buf[:1]
 
-    def _status(self, dxl_id: int, params: bytes = b"") -> bytes:
-        error = 0x80 if self.fault == "exception" else 0
-        return packet(dxl_id, STATUS, bytes([error]) + params)
+    def _status(self, dxl_id: int, params: bytes = b"", error: int = 0) -> bytes:
+        error |= 0x80 if self.fault == "exception" else 0
+        return packet(dxl_id, STATUS, bytes([error]) + (params if not error & 0x7F else b""))
 
     def handle(self, frame: bytes) -> bytes | None:
         dxl_id = frame[4]
@@ -97,6 +99,9 @@ class DynamixelFake(PtyFake):
                 blob += bytes([0x80 if self.fault == "exception" else 0, i]) + self._read(i, addr, length)
                 blob += struct.pack("<H", crc16(bytes(blob)))
             return self._fast_packet(bytes(blob[:-2]))
+        if inst == PING and dxl_id == BROADCAST:  # every motor answers, in ID order (as real ones do)
+            return b"".join(self._status(i, bytes(self.tables[i][0:2]) + bytes([self.tables[i][6]]))
+                            for i in sorted(self.tables))
         if dxl_id not in self.tables:
             return None
         if inst == PING:
@@ -104,10 +109,11 @@ class DynamixelFake(PtyFake):
             return self._status(dxl_id, bytes(t[0:2]) + bytes([t[6]]))
         if inst == READ:
             addr, length = struct.unpack("<HH", params[:4])
+            if addr + length > len(self.tables[dxl_id]):
+                return self._status(dxl_id, error=ACCESS_ERROR)  # past the control table
             return self._status(dxl_id, self._read(dxl_id, addr, length))
         if inst == WRITE:
-            self._write(dxl_id, struct.unpack("<H", params[:2])[0], params[2:])
-            return self._status(dxl_id)
+            return self._status(dxl_id, error=self._write(dxl_id, struct.unpack("<H", params[:2])[0], params[2:]))
         return packet(dxl_id, STATUS, bytes([0x02]))  # instruction error
 
     @staticmethod
@@ -122,12 +128,14 @@ class DynamixelFake(PtyFake):
             self._refresh_one(dxl_id)
         return bytes(self.tables[dxl_id][addr:addr + length])
 
-    def _write(self, dxl_id: int, addr: int, data: bytes) -> None:
+    def _write(self, dxl_id: int, addr: int, data: bytes) -> int:
+        """Apply a write; the status error code (0, or ACCESS_ERROR as a real motor answers it)."""
         self.writes.append((dxl_id, addr, bytes(data)))
         t = self.tables[dxl_id]
-        if addr < 64 and t[TORQUE]:
-            return  # EEPROM area is locked while torque is on (a real motor answers an access error)
+        if addr < EEPROM_END and t[TORQUE] or addr + len(data) > len(t):
+            return ACCESS_ERROR  # EEPROM is locked while torque is on; nothing past the control table
         t[addr:addr + len(data)] = data
+        return 0
 
     def torque(self, dxl_id: int) -> bool:
         return bool(self.tables[dxl_id][TORQUE])

@@ -1,4 +1,6 @@
-"""A Modbus RTU slave on a pty: holding and input register banks, FC03/04/06/16, exception replies."""
+"""A Modbus RTU slave on a pty: holding and input register banks, FC03/04/06/16, exception replies as the
+Modbus spec gives them (3 for a bad quantity or byte count, 2 for a bad address, 1 for FC15/FC43 and other
+unsupported functions), broadcast writes executed silently."""
 
 from __future__ import annotations
 
@@ -19,12 +21,12 @@ class ModbusFake(PtyFake):
         self.writes: list[tuple[int, list[int]]] = []
 
     def take_frame(self, buf: bytearray) -> bytes | None:
-        while len(buf) >= 8:
+        while len(buf) >= 7:
             fc = buf[1]
-            if fc == 0x10:
-                if len(buf) < 7:
-                    return None
+            if fc in (0x0F, 0x10):  # write multiple coils / registers: framed by their byte count
                 size = 9 + buf[6]
+            elif fc == 0x2B:  # encapsulated interface (read device identification): 7 bytes
+                size = 7
             elif fc in (0x03, 0x04, 0x06):
                 size = 8
             else:
@@ -40,15 +42,21 @@ class ModbusFake(PtyFake):
 
     def handle(self, frame: bytes) -> bytes | None:
         slave, fc = frame[0], frame[1]
+        if slave == 0:  # broadcast: a write is executed by every slave, nobody answers
+            if fc in (0x06, 0x10) and self.fault != "exception":
+                self.handle(bytes([self.slave]) + frame[1:])  # applied; the reply is suppressed
+            return None
         if slave != self.slave:
-            return None  # another slave's request (or broadcast): say nothing
+            return None  # another slave's request: say nothing
         if self.fault == "exception":
             return with_crc(bytes([slave, fc | 0x80, 4]))
         if fc in (0x03, 0x04):
             addr, count = struct.unpack(">HH", frame[2:6])
+            if not 1 <= count <= 125:
+                return with_crc(bytes([slave, fc | 0x80, 3]))  # illegal data value (the spec's order: quantity first)
             self.refresh()
             bank = self.holding if fc == 0x03 else self.feedback_bank()
-            if not 1 <= count <= 125 or any(a not in bank for a in range(addr, addr + count)):
+            if any(a not in bank for a in range(addr, addr + count)):
                 return with_crc(bytes([slave, fc | 0x80, 2]))
             regs = [bank[a] & 0xFFFF for a in range(addr, addr + count)]
             return with_crc(bytes([slave, fc, 2 * count]) + struct.pack(f">{count}H", *regs))
@@ -60,12 +68,14 @@ class ModbusFake(PtyFake):
             return frame
         if fc == 0x10:
             addr, count = struct.unpack(">HH", frame[2:6])
+            if not 1 <= count <= 123 or frame[6] != 2 * count:
+                return with_crc(bytes([slave, fc | 0x80, 3]))  # quantity out of range or byte count mismatch
             values = list(struct.unpack(f">{count}H", frame[7:7 + 2 * count]))
             if any(a not in self.holding for a in range(addr, addr + count)):
                 return with_crc(bytes([slave, fc | 0x80, 2]))
             self._write(addr, values)
             return with_crc(frame[:6])
-        return with_crc(bytes([slave, fc | 0x80, 1]))
+        return with_crc(bytes([slave, fc | 0x80, 1]))  # illegal function: FC01/02/05/15/43/... are not supported
 
     def _write(self, addr: int, values: list[int]) -> None:
         self.writes.append((addr, values))
