@@ -55,7 +55,8 @@ def run(urdf: Path, out_path: Path | None, name: str | None, asset_root: str | N
         raise DgzError(f"--name '{name}' is not a valid hand name", "use lower-case letters, digits, '_' or '-'")
     out_path = out_path or Path(f"{name}.yaml")
     if _same_file(out_path, urdf):  # refuse before the (slow) pipeline; write_spec refuses it again
-        raise DgzError(f"cannot write {out_path}: it is the input URDF", "write the spec to another file (e.g. -o hand.yaml)")
+        raise DgzError(f"cannot write {out_path}: it is the input file {urdf}",
+                       "write the spec to another file (e.g. -o hand.yaml)")
     _check_output(out_path)
     root = resolve_root(asset_root)
     overrides, carried = None, False
