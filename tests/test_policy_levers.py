@@ -18,8 +18,8 @@ from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.sim.reward import graspxl_terms, graspxl_total
 from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ControlContract,
-                                   ObservationLayout, WristGuidance, finger_targets)
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
+                                   ControlContract, ObservationLayout, WristGuidance, finger_targets)
 from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward
 from dgz_cli.spec.io import load_spec
 
@@ -167,3 +167,29 @@ def test_per_type_log_std_and_the_floor():
     m.clamp_log_std(math.log(0.2))
     assert float(m.log_std_prim.detach().min()) == pytest.approx(math.log(0.2))
     assert ppo.cfg.min_std == 0.2
+
+
+def test_closing_prior_by_hand_and_in_the_env():
+    c = ControlContract(observation=MARKOV, prior=ClosingPrior(enabled=True, close_gap=0.03, close_step=50))
+    lay = c.observation
+    nodes = np.zeros((2, 3, lay.node_dim), np.float32)
+    nodes[:, 0, lay.node_col("node_type").start + 0] = 1.0          # node 0: the wrist (NODE_TYPES[0])
+    nodes[:, 0, lay.node_col("d")] = [0.0, 0.0, 0.02 / 0.3]          # palm 2 cm from the surface
+    nodes[1, 0, lay.node_col("d")] = [0.0, 0.0, 0.2 / 0.3]           # slot 1: 20 cm
+    glob = np.zeros((2, lay.global_dim), np.float32)
+    glob[:, lay.global_col("phase")] = 10 / 190
+    mask = np.array([[[1, 0, 1], [1, 0, 0], [0, 1, 0]]] * 2, np.float32)
+    a = c.prior_action(nodes, glob, mask, np.ones((2, 3), bool))
+    np.testing.assert_array_equal(a[0, 6:], [0, 0, 0, 1, 0, 0, 0, 0, 0])  # only node 1: not the wrist, FLEX active
+    assert not a[1].any() and not a[:, :6].any()
+    glob[1, lay.global_col("phase")] = 50 / 190  # step 50: close regardless of the gap
+    assert c.prior_action(nodes, glob, mask, np.ones((2, 3), bool))[1, 9] == 1
+    with pytest.raises(ValueError, match="phase"):
+        ControlContract(prior=ClosingPrior(enabled=True))  # the paper's layout has no phase block
+    # in the env: zero policy actions + the prior close the hand from step 50 on
+    env = _env(EnvConfig(contract=c))
+    env.reset()
+    for _ in range(60):
+        obs, *_ = env.step(np.zeros((1, env.action_dim)))
+    assert obs["nodes"][0, :, lay.node_col("theta")][:, 0].max() > 0.03  # > 0.09 rad of flexion (÷ π)
+    env.close()

@@ -13,8 +13,8 @@ from dgz_cli.runtime.steplog import read_log
 from dgz_cli.sim.evaluate import run_episodes
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ControlContract,
-                                   ObservationLayout, WristGuidance)
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
+                                   ControlContract, ObservationLayout, WristGuidance)
 from dgz_cli.spec.io import load_spec
 
 HAND, OBJECT, SEED = "dgz_tri", "sphere", 3
@@ -38,7 +38,8 @@ class Recorder:
 
 LEVERS = ControlContract(  # issue 11's levers that act through the contract: all of them on
     observation=ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS),
-    action=ActionLayout(finger_max_lead=0.05, mask_actions=True), guidance=WristGuidance(gain=0.05))
+    action=ActionLayout(finger_max_lead=0.05, mask_actions=True), guidance=WristGuidance(gain=0.05),
+    prior=ClosingPrior(enabled=True))
 
 
 def _eval_actions(policy: str, contract=None):

@@ -71,4 +71,7 @@ class TrainConfig(BaseModel):
                                           "(None = no cap)")
     mask_actions: bool = Field(False, description="score only the primitives the activation mask enables")
     log_std_per_type: bool = Field(False, description="exploration log-std per (node type, primitive)")
+    closing_prior: bool = Field(False, description="the policy is a residual on the contract's Markov closing prior "
+                                "(needs observation: markov)")
+    init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     ppo: PPOConfig = PPOConfig()

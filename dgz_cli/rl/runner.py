@@ -24,8 +24,8 @@ from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
 from dgz_cli.rl.storage import RolloutStorage
-from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ControlContract,
-                                   ObservationLayout, WristGuidance)
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
+                                   ControlContract, ObservationLayout, WristGuidance)
 from dgz_cli.spec.envconfig import EnvConfig, RewardWeights
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
@@ -40,8 +40,10 @@ ABLATION_MODEL = {
 
 
 def model_config(cfg: TrainConfig) -> MagcnConfig:
-    return get_preset(cfg.preset).model_copy(update=dict(ABLATION_MODEL[cfg.ablation],
-                                                         log_std_per_type=cfg.log_std_per_type))
+    update = dict(ABLATION_MODEL[cfg.ablation], log_std_per_type=cfg.log_std_per_type)
+    if cfg.init_log_std is not None:
+        update["init_log_std"] = cfg.init_log_std
+    return get_preset(cfg.preset).model_copy(update=update)
 
 
 def env_config(cfg: TrainConfig) -> EnvConfig:
@@ -52,7 +54,8 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
     contract = ControlContract(observation=layout,
                                action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
                                                    mask_actions=cfg.mask_actions),
-                               guidance=WristGuidance(gain=cfg.guidance_gain))
+                               guidance=WristGuidance(gain=cfg.guidance_gain),
+                               prior=ClosingPrior(enabled=cfg.closing_prior))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
                      roll=cfg.roll)
 

@@ -82,6 +82,7 @@ class GraspEnv:
         self._palm_velocity = np.zeros((B, 3))  # world, m/s, at the last observation
         self.p0 = np.zeros((B, 3))  # settled object positions (the push limit)
         self._global = np.zeros((B, cfg.contract.observation.global_dim), np.float32)  # the last observation's
+        self._nodes = np.zeros((B, self.N, cfg.contract.observation.node_dim), np.float32)
         tip = NODE_TYPES.index("fingertip")
         self.node_weight = self.node_valid * np.where(self.node_type[..., tip] > 0, cfg.graspxl.tip_weight, 1.0)
 
@@ -161,7 +162,7 @@ class GraspEnv:
         for b in range(self.B):
             self._reset_slot(b)
         obs = self._observe()[0]
-        self._global = obs["global"]
+        self._global, self._nodes = obs["global"], obs["nodes"]
         return obs
 
     def _reset_slot(self, b: int) -> None:
@@ -201,7 +202,10 @@ class GraspEnv:
         clip to [-1, 1], fingers by :func:`finger_targets`, wrist by ``wrist_scale`` plus the protocol's lift."""
         cfg, B = self.cfg, self.B
         act, ep = cfg.contract.action, cfg.contract.episode
-        a = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), -1.0, 1.0)
+        a = np.nan_to_num(np.asarray(action, dtype=np.float64))
+        if cfg.contract.prior.enabled:  # the policy's action is a residual on the contract's Markov prior
+            a = a + cfg.contract.prior_action(self._nodes, self._global, self.mask, self.node_valid)
+        a = np.clip(a, -1.0, 1.0)
         wrist, fingers = a[:, :act.wrist_dim], a[:, act.wrist_dim:]
         alpha = fingers.reshape(B, self.N, act.n_prim) * self.node_valid[..., None]
         new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,
@@ -287,7 +291,7 @@ class GraspEnv:
             for key in ("nodes", "global"):
                 obs[key][finished] = fresh[key][finished]
         self.timing["env_other_s"] += time.perf_counter() - t_start - physics
-        self._global = obs["global"]
+        self._global, self._nodes = obs["global"], obs["nodes"]
         return obs, reward.astype(np.float32), terminated, (done | ~ok) & ~terminated, info
 
     def lifting(self) -> np.ndarray:

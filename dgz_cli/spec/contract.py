@@ -138,6 +138,18 @@ class WristGuidance(_Frozen):
         return out
 
 
+class ClosingPrior(_Frozen):
+    """A Markov prior the policy's action is a residual on (issue 11, lever 6): +FLEX (normalized 1) on every
+    non-wrist node whose FLEX is active once the palm is within ``close_gap`` of the object surface or the
+    episode reached ``close_step``, else 0; nothing on the wrist (the guidance approaches). It reads only the
+    current observation (the wrist node's ``d``, the ``phase`` block), so the policy + prior stays Markov,
+    unlike the scripted grasp's closing latch. Applied before the [-1, 1] clip, in sim and on hardware."""
+
+    enabled: bool = False
+    close_gap: float = Field(0.03, gt=0, le=0.3, description="m, palm centre to the nearest surface point")
+    close_step: int = Field(50, ge=0, description="control step from which the prior closes regardless")
+
+
 class ActionLayout(_Frozen):
     wrist_dim: int = Field(6, gt=0)
     n_prim: int = Field(3, gt=0, description="primitives per node: FLEX, ABD, ROT")
@@ -211,6 +223,33 @@ class ControlContract(_Frozen):
     action: ActionLayout = ActionLayout()
     episode: EpisodeProtocol = EpisodeProtocol()
     guidance: WristGuidance = WristGuidance()
+    prior: ClosingPrior = ClosingPrior()
+
+    @model_validator(mode="after")
+    def _prior_needs_phase(self) -> "ControlContract":
+        if self.prior.enabled and not self.observation.has("phase"):
+            raise ValueError("the closing prior reads the 'phase' block: use an observation layout that has it")
+        return self
+
+    def prior_action(self, nodes: np.ndarray, glob: np.ndarray, mask: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
+        """(B, action_dim) the closing prior's normalized action (zeros when disabled) from an observation:
+        nodes (B, N, node_dim), global (B, global_dim), mask (B, N, 3), node_valid (B, N)."""
+        act, lay = self.action, self.observation
+        b, n = node_valid.shape
+        out = np.zeros((b, act.dim(n)))
+        if not self.prior.enabled:
+            return out
+        from dgz_cli.spec.models import NODE_TYPES
+
+        wrist_col = lay.node_col("node_type").start + NODE_TYPES.index("wrist")
+        is_wrist = (nodes[..., wrist_col] > 0) & node_valid
+        d = nodes[..., lay.node_col("d")].astype(np.float64) * lay.distance_clip
+        gap = np.where(is_wrist, np.linalg.norm(d, axis=-1), np.inf).min(-1)  # (B,) inf: no wrist node
+        step = np.rint(glob[:, lay.global_col("phase")].astype(np.float64)[:, 0] * self.episode.episode_steps)
+        close = (gap < self.prior.close_gap) | (step >= self.prior.close_step)
+        flex = (mask[..., 0] > 0) & node_valid & ~is_wrist & close[:, None]
+        out[:, act.wrist_dim::act.n_prim] = flex
+        return out
 
     @property
     def privileged_inputs(self) -> tuple[str, ...]:
