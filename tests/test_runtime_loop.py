@@ -221,6 +221,58 @@ def test_first_ctrl_c_stops_second_relaxes():
     assert res.exit_code == 130 and "second Ctrl-C" in res.reason and res.exit_action == "relax"
 
 
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("on_exit", ["hold", "relax"])
+def test_sigterm_and_sighup_stop_like_ctrl_c(sig, on_exit):
+    """systemd, docker stop, timeout (SIGTERM) and a closed terminal (SIGHUP): stop at the step boundary, then
+    the exit actions (--on-exit honoured), exit code 143; the process is not killed."""
+    def once(fake, a):
+        os.kill(os.getpid(), sig)
+        return a
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    res, fake = run_with("revo2", once, at=4, on_exit=on_exit)
+    assert res.exit_code == 143 and res.reason == f"stopped by {sig.name} after 5 steps", res.reason
+    assert res.exit_action == on_exit and not res.ok
+    assert {s: signal.getsignal(s) for s in before} == before  # the guard puts the previous handlers back
+    last_goal = [v for a, v in fake.writes if a == 1022][-1]
+    if on_exit == "relax":
+        assert all(last_goal[2 * i] == 0 for i in range(6))  # Revo2 relax: open on every finger
+
+
+def test_second_signal_relaxes_at_once():
+    def two(fake, a):
+        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), signal.SIGHUP)
+        return a
+    res, _ = run_with("leap", two, at=4)
+    assert res.exit_code == 143 and res.reason == "SIGHUP after SIGTERM: relaxing at once" and res.exit_action == "relax"
+
+
+def test_deploy_on_sigterm_writes_the_end_record_and_returns_143(tmp_path):
+    """End to end through `dgz deploy --fake`: the step log's end record and the exit code."""
+    from dgz_cli.runtime import policy as policy_mod
+
+    log = tmp_path / "t.jsonl"
+    real_act = policy_mod.ClosePolicy.act
+
+    def act(self, obs):
+        if getattr(self, "k", 0) == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return real_act(self, obs)
+
+    out = console()
+    mp = pytest.MonkeyPatch()
+    mp.setattr(policy_mod.ClosePolicy, "act", act)
+    try:
+        code = deploy_cmd.run("inspire", None, "close", None, False, True, True, log, "relax", None, out, contract=FAST)
+    finally:
+        mp.undo()
+    assert code == 143, out.export_text()
+    header, steps, end = read_log(log)
+    assert end["exit_code"] == 143 and end["exit_action"] == "relax" and "stopped by SIGTERM" in end["reason"]
+    assert "stopped by SIGTERM" in out.export_text()
+
+
 def test_step_log_is_jsonl(tmp_path):
     cfg, spec = load_hand("inspire")
     path = tmp_path / "run.jsonl"

@@ -159,11 +159,14 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
 
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
-    previous = signal.getsignal(signal.SIGTERM)
-    def _stop(*_) -> None:  # SIGTERM saves and exits like Ctrl-C
+    stop_signals = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
+    previous = {s: signal.getsignal(s) for s in stop_signals}
+
+    def _stop(*_) -> None:  # SIGTERM and SIGHUP (a closed terminal) save and exit like Ctrl-C
         raise KeyboardInterrupt
 
-    signal.signal(signal.SIGTERM, _stop)
+    for s in stop_signals:
+        signal.signal(s, _stop)
     saved = _mtime(out / "checkpoint.yaml")
     try:
         trainer.train()
@@ -177,7 +180,8 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
             _clean_failed_run(out, existed, tb_before)
         raise
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, handler in previous.items():
+            signal.signal(s, handler if handler is not None else signal.SIG_DFL)
         writer.close()
     table = Table(title=f"{escape(str(out))}: {trainer.iteration} iterations")
     for col in ("iteration", "success_rate", "mean_return", "steps_per_s"):

@@ -10,7 +10,8 @@ Faults stop the loop at once: a device or arm fault or disconnect, a non-finite 
 lost/garbled replies in a row, ``stale_reads`` repeated feedback frames while the hand is being moved,
 ``max_overruns`` late steps in a row, or a policy exception. At exit the arm holds first, then the hand
 takes ``on_exit`` (hold or relax; a second Ctrl-C relaxes at once); if that fails, ``torque_off()`` runs
-in ``finally``. A dry run reads but never writes (hand or arm).
+in ``finally``. SIGTERM and SIGHUP are handled like Ctrl-C (exit code 143 instead of 130). A dry run reads
+but never writes (hand or arm).
 """
 
 from __future__ import annotations
@@ -263,10 +264,12 @@ class Runner:
             res.reason = (f"completed {res.steps} steps ({ep.grasp_steps} grasp + {ep.lift_steps} lift + "
                           f"{ep.hold_steps} hold)")
         except _StopRequested:
-            res.exit_code, res.reason = 130, f"stopped by Ctrl-C after {res.steps} steps"
+            res.exit_code, what = self._stopped_by()
+            res.reason = f"stopped by {what} after {res.steps} steps"
         except KeyboardInterrupt:
             immediate = True
-            res.exit_code, res.reason = 130, "second Ctrl-C: relaxing at once"
+            res.exit_code, _ = self._stopped_by()
+            res.reason = f"{getattr(self.guard, 'second', 'second Ctrl-C')}: relaxing at once"
         except DgzError as exc:
             res.reason, res.hint = exc.message, exc.hint
         except Exception as exc:  # a policy or observation builder bug must still end in a safe stop
@@ -283,6 +286,10 @@ class Runner:
                          overruns=res.overruns, bus_errors=res.bus_errors, exit_action=res.exit_action,
                          arm_exit=res.arm_exit)
         return res
+
+    def _stopped_by(self) -> tuple[int, str]:
+        """(exit code, what stopped the run): 130 for Ctrl-C, 143 for SIGTERM or SIGHUP (see docs/deploy.md)."""
+        return getattr(self.guard, "exit_code", 130), getattr(self.guard, "what", "Ctrl-C")
 
     def _arm_exit(self) -> str:
         """Stop the arm where it is (first, so the hand is not carried on while it lets go)."""

@@ -1,4 +1,4 @@
-"""Fixed-rate timing with absolute deadlines, and the two-stage Ctrl-C guard."""
+"""Fixed-rate timing with absolute deadlines, and the two-stage stop guard (Ctrl-C, SIGTERM, SIGHUP)."""
 
 from __future__ import annotations
 
@@ -47,33 +47,75 @@ class RateLoop:
         return late
 
 
-class InterruptGuard:
-    """First Ctrl-C: ask the loop to stop at the next step boundary (then hold/relax as configured).
-    Second Ctrl-C: raise KeyboardInterrupt at once (the runtime relaxes the hand immediately).
-    Installs a SIGINT handler only in the main thread; elsewhere it is a plain flag."""
+#: Signals that ask for a clean stop: Ctrl-C, ``kill``/systemd/``docker stop``/``timeout`` (SIGTERM), a closed
+#: terminal or ssh session (SIGHUP). Each is handled like Ctrl-C.
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
 
-    def __init__(self) -> None:
+
+def signal_name(signum: int | None) -> str:
+    """``Ctrl-C`` for SIGINT, else the signal's name (``SIGTERM``, ``SIGHUP``)."""
+    if signum is None or signum == signal.SIGINT:
+        return "Ctrl-C"
+    try:
+        return signal.Signals(signum).name
+    except ValueError:
+        return f"signal {signum}"
+
+
+def exit_code_for(signum: int | None) -> int:
+    """130 for Ctrl-C (SIGINT); 143 (128 + SIGTERM) for SIGTERM and SIGHUP, both termination requests."""
+    return 130 if signum is None or signum == signal.SIGINT else 143
+
+
+class InterruptGuard:
+    """First Ctrl-C, SIGTERM or SIGHUP: ask the loop to stop at the next step boundary (then hold/relax as
+    configured). A second one (any of them): raise KeyboardInterrupt at once (the runtime relaxes the hand
+    immediately). Installs the handlers only in the main thread; elsewhere it is a plain flag.
+    ``signum`` is the first signal received (None: none yet, or a stop requested in code)."""
+
+    def __init__(self, signals=STOP_SIGNALS) -> None:
         self.count = 0
-        self._previous = None
+        self.signum: int | None = None
+        self.last: int | None = None
+        self.signals = tuple(signals)
+        self._previous: dict = {}
 
     @property
     def stop_requested(self) -> bool:
         return self.count > 0
 
+    @property
+    def exit_code(self) -> int:
+        return exit_code_for(self.signum)
+
+    @property
+    def what(self) -> str:
+        return signal_name(self.signum)
+
     def request_stop(self) -> None:
         self.count = max(self.count, 1)
 
+    @property
+    def second(self) -> str:
+        """What the second stop was: ``second Ctrl-C``, ``second SIGTERM``, ``SIGHUP after SIGTERM``."""
+        first, last = signal_name(self.signum), signal_name(self.last)
+        return f"second {first}" if first == last else f"{last} after {first}"
+
     def _handler(self, signum, frame) -> None:
+        if self.count == 0:
+            self.signum = signum
+        self.last = signum
         self.count += 1
         if self.count >= 2:
             raise KeyboardInterrupt
 
     def __enter__(self) -> "InterruptGuard":
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
+            for sig in self.signals:
+                self._previous[sig] = signal.signal(sig, self._handler)
         return self
 
     def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+        self._previous = {}
