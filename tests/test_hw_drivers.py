@@ -87,14 +87,79 @@ def test_revo2_wrong_slave_names_port_and_fix(rig):
         fake.stop()
 
 
-def test_revo2_unit_mode_guard(rig):
-    driver, fake = rig("revo2")
-    fake.holding[937] = 1
-    driver.connect()
-    with pytest.raises(IdentityError, match="physical unit mode"):
-        driver.read_state()
+START = [300.0, 500.0, 250.0, 700.0, 100.0, 900.0]  # normalized finger positions the fake starts at
+
+
+def test_revo2_physical_unit_mode_is_read_in_degrees_and_switched_at_enable(rig):
+    """Issue 10 item 4: a Revo2 left in physical-unit mode (937 = 1) reports degrees; connect detects it, reads
+    convert correctly (same q as in normalized mode), nothing is written until enable(), which switches the
+    mode and reads it back before any position goes out."""
+    ref, ref_fake = rig("revo2", start=START)
+    ref.connect()
+    q_ref = ref.read_state().q
+    driver, fake = rig("revo2", unit_mode=1, start=START)
+    info = driver.connect()
+    assert info.identity["unit mode"] == "1" and fake.holding[937] == 1
+    assert fake.input[2000 + 1] == round(500 * 90 / 1000)  # the fake reports degrees
+    q = driver.read_state().q
+    assert np.max(np.abs(q - q_ref)) < np.radians(0.6)  # within half a degree of rounding, not 1000× off
+    assert fake.writes == []  # read-only until enable(): a dry run never writes
     driver.enable()
-    assert fake.holding[937] == 0 and driver.read_state().q.shape == (6,)
+    assert fake.writes == [(937, [0])] and fake.holding[937] == 0
+    assert np.max(np.abs(driver.read_state().q - q_ref)) < 1e-9
+    target = q_ref + 0.05
+    driver.write_targets(target)
+    assert wait_until(lambda: np.max(np.abs(driver.read_state().q - target)) < 0.01)
+
+
+def test_revo2_refuses_positions_in_physical_mode_and_a_mode_that_does_not_switch(rig):
+    driver, fake = rig("revo2", unit_mode=1, start=START)
+    driver.connect()
+    with pytest.raises(IdentityError, match="refusing to write positions: Revo2 is in physical unit mode"):
+        driver.write_targets(driver.read_state().q)  # without enable(): would be read as degrees
+    with pytest.raises(IdentityError, match="physical unit mode"):
+        driver.hold()
+    original = fake.on_write
+
+    def stuck(addr, values):  # firmware that ignores the mode write
+        original(addr, values)
+        fake.holding[937] = 1
+    fake.on_write = stuck
+    with pytest.raises(IdentityError, match="stays in unit mode 1 after writing 0 to register 937"):
+        driver.enable()
+    assert [a for a, _ in fake.writes] == [937]  # no position was written
+    driver.torque_off()  # the fallback exit action (PWM 0) does not depend on the unit mode
+    assert wait_until(lambda: fake.pwm_off)
+
+
+def test_revo2_unknown_unit_mode_is_refused_at_connect(rig):
+    driver, fake = rig("revo2", unit_mode=7)
+    with pytest.raises(IdentityError, match="unit mode 7 \\(register 937\\)"):
+        driver.connect()
+    assert fake.writes == []
+
+
+def test_revo2_in_physical_mode_deploys_and_dry_runs(rig):
+    from dgz_cli.runtime.loop import RunConfig, Runner
+    from dgz_cli.runtime.mapping import start_pose
+    from dgz_cli.runtime.policy import ClosePolicy
+    from dgz_cli.spec.contract import ControlContract, EpisodeProtocol
+
+    contract = ControlContract(episode=EpisodeProtocol(control_hz=100.0, grasp_steps=10, lift_steps=2, hold_s=0.0))
+    driver, fake = rig("revo2", unit_mode=1, start=START)
+    with driver:
+        res = Runner(driver, driver.spec, ClosePolicy(driver.spec), RunConfig(contract=contract, dry_run=True)).run(
+            start_pose(driver.spec))
+    assert res.ok, res.reason
+    assert fake.writes == [] and fake.holding[937] == 1  # a dry run leaves the mode alone
+    driver, fake = rig("revo2", unit_mode=1, start=START)
+    with driver:
+        res = Runner(driver, driver.spec, ClosePolicy(driver.spec), RunConfig(contract=contract)).run(
+            start_pose(driver.spec))
+    assert res.ok and res.exit_action == "hold", res.reason
+    assert fake.writes[0] == (937, [0])
+    first = fake.writes[1]  # the ramp's first set-points start where the fingers are (no jump)
+    assert first[0] == 1022 and max(abs(first[1][2 * i] - START[i]) for i in range(6)) <= 10
 
 
 def test_inspire_id_mismatch_and_settings(rig):

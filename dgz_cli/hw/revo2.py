@@ -2,10 +2,16 @@
 
 Positions are normalized 0 (open) … 1000 (closed); radians use the limits read from the device:
 rad = (min_deg + n·(max_deg − min_deg)/1000)·π/180. Register use (see docs/deploy.md):
-FC03 901 SKU, 937 unit mode (0 = normalized), 946/952 min/max position (°, 6 each);
+FC03 901 SKU, 937 unit mode (0 = normalized, 1 = physical: positions in degrees), 946/952 min/max position
+(°, 6 each);
 FC16 1022 = 6 × [position, speed]; FC16 1046 = 6 PWM words (all 0 = motors unpowered);
 FC04 2000 = 24 words read as 4 blocks of 6: position, speed, current (mA, signed), state;
 FC04 3000 / 3010 = firmware version / serial number (ASCII, 10 registers each).
+
+A hand left in physical-unit mode (937 = 1) is detected at connect (a read): its feedback positions are
+degrees, converted to the normalized scale with the limits read from the device, so a dry run reads it
+correctly and writes nothing. ``enable()`` — the first write of a real run — switches it to normalized mode
+and reads 937 back before any position is written; no position is ever written in physical-unit mode.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ SKU, UNIT_MODE, MIN_POS, MAX_POS = 901, 937, 946, 952
 POS_SPEED, PWM = 1022, 1046
 FEEDBACK, FIRMWARE, SERIAL = 2000, 3000, 3010
 MAX_LIMIT_DEG = 180  # a finger joint's range read from the device must lie inside ±180°
+NORMALIZED, PHYSICAL = 0, 1  # register 937
 
 
 class Revo2Driver(ModbusHand):
@@ -53,6 +60,10 @@ class Revo2Driver(ModbusHand):
                                     "check the firmware's unit mode and calibration with BrainCo's tool")
             self.mapper = JointMapper(self.cfg, self.spec, self.limits_deg, where=f"{self.port}: Revo2")
             self.unit_mode = self._identify("the unit mode (937)", lambda: bus.read_holding(s, UNIT_MODE, 1)[0])
+            if self.unit_mode not in (NORMALIZED, PHYSICAL):
+                raise IdentityError(f"{self.port}: Revo2 reports unit mode {self.unit_mode} (register {UNIT_MODE}): "
+                                    f"neither normalized ({NORMALIZED}) nor physical ({PHYSICAL})",
+                                    "check the firmware with BrainCo's tool, or set register 937 to 0")
         except BaseException:
             self.close()
             raise
@@ -64,25 +75,39 @@ class Revo2Driver(ModbusHand):
         return self.info
 
     def enable(self) -> None:
-        if self.unit_mode != 0:
-            self.bus.write_single(self.slave, UNIT_MODE, 0)  # normalized 0–1000
-            self.unit_mode = 0
+        """Switch a hand left in physical-unit mode to normalized mode, then read the mode back: a hand that
+        does not switch is refused before any position is written."""
+        if self.unit_mode != NORMALIZED:
+            self.bus.write_single(self.slave, UNIT_MODE, NORMALIZED)
+            mode = self.bus.read_holding(self.slave, UNIT_MODE, 1)[0]
+            if mode != NORMALIZED:
+                raise IdentityError(f"{self.port}: Revo2 stays in unit mode {mode} after writing {NORMALIZED} to "
+                                    f"register {UNIT_MODE}",
+                                    "set normalized mode (937 = 0) with BrainCo's tool, then retry")
+            self.unit_mode = NORMALIZED
 
-    def _check_units(self) -> None:
-        if self.unit_mode != 0:
-            raise IdentityError(f"{self.port}: Revo2 is in physical unit mode (register 937 = {self.unit_mode})",
-                                "run once without --dry-run (dgz sets normalized mode) or set 937 to 0")
+    def _normalized(self, pos: list[int]) -> list[float]:
+        """Feedback positions (device order) on the normalized 0–1000 scale, whatever the unit mode."""
+        if self.unit_mode == NORMALIZED:
+            return list(pos)
+        deg = to_signed(pos)  # physical mode: degrees, on the scale of the limits 946/952
+        return [1000.0 * (d - lo) / (hi - lo) for d, (lo, hi) in zip(deg, self.limits_deg)]
 
     def read_state(self) -> HandState:
-        self._check_units()
         regs = self.bus.read_input(self.slave, FEEDBACK, 24)
         stamp = time.monotonic()
-        pos = regs[0:6]
+        raw = regs[0:6]
+        pos = self._normalized(raw)
         current = to_signed(regs[12:18])
-        return HandState(q=self._checked(self.mapper.to_rad(pos), pos), effort=self.mapper.reorder(current), effort_kind="current_mA",
-                         stamp=stamp, fingerprint=bytes(str(regs), "ascii"), native=list(pos))
+        return HandState(q=self._checked(self.mapper.to_rad(pos), raw), effort=self.mapper.reorder(current),
+                         effort_kind="current_mA", stamp=stamp, fingerprint=bytes(str(regs), "ascii"),
+                         native=list(raw))
 
     def _write_native(self, native: list[int], speed: int) -> None:
+        if self.unit_mode != NORMALIZED:  # the set-points would be read as degrees
+            raise IdentityError(f"{self.port}: refusing to write positions: Revo2 is in physical unit mode "
+                                f"(register {UNIT_MODE} = {self.unit_mode})",
+                                "enable() switches it to normalized mode; set 937 to 0 if that failed")
         words = []
         for n in native:
             words += [int(n), int(speed)]
