@@ -1,5 +1,6 @@
 """Fake devices behave like the real ones where that matters (issue 10 item 11), and the Dynamixel driver
-resynchronises on junk before a status header as the ROBOTIS SDK does."""
+resynchronises on junk before a status header as the ROBOTIS SDK does and discards stale status packets
+(late replies to earlier requests)."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ import time
 
 import pytest
 
-from dgz_cli.hw.dynamixel import BROADCAST, MAX_JUNK, PING, STATUS, DynamixelBus, packet
+from dgz_cli.hw.dynamixel import BROADCAST, BULK_READ, MAX_JUNK, MAX_STALE, PING, STATUS, DynamixelBus, packet
 from dgz_cli.hw.errors import BusCrcError, BusTimeout, DeviceFault
-from dgz_cli.hw.fakes.dynamixel import GOAL_POS, TORQUE, DynamixelFake
+from dgz_cli.hw.fakes.dynamixel import GOAL_POS, PRESENT_POS, TORQUE, DynamixelFake
 from dgz_cli.hw.fakes.modbus import ModbusFake
 from dgz_cli.hw.modbus_rtu import with_crc
 from dgz_cli.hw.serial_port import open_serial
@@ -90,6 +91,111 @@ def test_fake_dynamixel_answers_broadcast_ping(dxl):
     ser.write(packet(BROADCAST, PING))
     ids = [bus.receive(0)[0] for _ in range(3)]
     assert ids == [0, 1, 2]
+
+
+def test_bulk_read_packet_matches_the_e_manual():
+    # ROBOTIS e-manual, Protocol 2.0 Bulk Read example: ID 1 reads 2 bytes at 144, ID 2 reads 1 byte at 146
+    wire = Wire(b"")
+    with pytest.raises(BusTimeout):
+        DynamixelBus(wire, "p").bulk_read({1: (144, 2), 2: (146, 1)})
+    assert wire.sent[0] == bytes.fromhex("FF FF FD 00 FE 0D 00 92 01 90 00 02 00 02 92 00 01 00 1A 05")
+
+
+def test_fake_dynamixel_answers_bulk_read(dxl):
+    fake, bus, _ = dxl
+    struct.pack_into("<i", fake.tables[2], GOAL_POS, 1234)
+    got = bus.bulk_read({2: (GOAL_POS, 4), 0: (0, 2), 1: (PRESENT_POS, 4)})  # a different address/length each
+    assert list(got) == [2, 0, 1]
+    assert struct.unpack("<i", got[2])[0] == 1234 and struct.unpack("<H", got[0])[0] == 1220
+    assert struct.unpack("<i", got[1])[0] == 2048
+
+
+def test_fake_dynamixel_bulk_read_answers_in_request_order_one_status_per_motor(dxl):
+    fake, bus, ser = dxl
+    ser.reset_input_buffer()
+    ser.write(packet(BROADCAST, BULK_READ, struct.pack("<BHHBHH", 1, 7, 1, 0, 6, 1)))  # ID, firmware: 1 then 0
+    assert [bus.receive(0)[::2] for _ in range(2)] == [(1, b"\x01"), (0, b"\x34")]
+    assert ser.read(1) == b""  # nothing more
+
+
+def test_fake_dynamixel_bulk_read_stops_at_an_absent_id_and_refuses_reads_past_the_table(dxl):
+    fake, bus, ser = dxl
+    with pytest.raises(BusTimeout, match="ID 9"):
+        bus.bulk_read({0: (PRESENT_POS, 4), 9: (PRESENT_POS, 4), 1: (PRESENT_POS, 4)})
+    ser.reset_input_buffer()
+    ser.write(packet(BROADCAST, BULK_READ, struct.pack("<BHHBHHBHH", 0, 132, 4, 9, 132, 4, 1, 132, 4)))
+    assert bus.receive(0)[0] == 0
+    assert ser.read(1) == b""  # ID 1 waits for ID 9's status, which never comes: silence, as on a real bus
+    with pytest.raises(DeviceFault, match="ID 1 reports access error"):
+        bus.bulk_read({0: (PRESENT_POS, 4), 1: (699, 4)})
+    ser.reset_input_buffer()
+    ser.write(packet(BROADCAST, BULK_READ, b"\x00\x84\x00\x04"))  # not a multiple of 5 bytes
+    assert ser.read(1) == b""
+    ser.write(packet(1, BULK_READ, struct.pack("<BHH", 1, 132, 4)))  # bulk read is broadcast only
+    assert ser.read(1) == b""
+
+
+# --------------------------------------------------------------------------------------------
+# Dynamixel driver: a complete, valid status packet that answers an earlier request is discarded
+# --------------------------------------------------------------------------------------------
+
+def _status(dxl_id: int, params: bytes = b"", error: int = 0) -> bytes:
+    return packet(dxl_id, STATUS, bytes([error]) + params)
+
+
+READ_REPLY = _status(5, struct.pack("<i", 2100))
+STALE = {
+    "other-id": _status(3, struct.pack("<i", 77)),
+    "other-id-ping": _status(4, struct.pack("<HB", 1220, 52)),
+    "same-id-write-ack": _status(5),
+    "same-id-ping-reply": PING_REPLY,
+    "same-id-2-byte-read": _status(5, b"\x01\x02"),
+}
+
+
+@pytest.mark.parametrize("stale", list(STALE.values()), ids=list(STALE))
+def test_driver_discards_a_stale_status_before_a_read_reply(stale: bytes):
+    bus = DynamixelBus(Wire(stale + READ_REPLY), "p")
+    assert bus.read(5, 132, 4) == struct.pack("<i", 2100)
+    assert bus.stats.extra["stale"] == 1 and bus.stats.errors == 0
+
+
+@pytest.mark.parametrize("stale", [READ_REPLY, _status(9), _status(5, b"\x01")], ids=["read-reply", "other-id", "1-byte"])
+def test_driver_discards_a_stale_status_before_a_ping_or_write_reply(stale: bytes):
+    assert DynamixelBus(Wire(stale + PING_REPLY), "p").ping(5) == (1220, 52)
+    if stale[4] == 5 and len(stale) > 11:  # a same-ID reply with data cannot be the write's acknowledgement
+        bus = DynamixelBus(Wire(stale + _status(5)), "p")
+        bus.write(5, 116, b"\x00\x00\x00\x00")
+        assert bus.stats.extra["stale"] == 1
+
+
+def test_driver_discards_stale_packets_in_sync_and_fast_sync_read():
+    stale = _status(1, b"\xaa")  # a 1-byte answer to an earlier request
+    replies = b"".join(_status(i, struct.pack("<i", 100 + i)) for i in (1, 2))
+    assert DynamixelBus(Wire(stale + replies), "p").sync_read(132, 4, [1, 2]) == {1: struct.pack("<i", 101),
+                                                                                   2: struct.pack("<i", 102)}
+    blob = bytearray()
+    for i in (1, 2):
+        blob += bytes([0, i]) + struct.pack("<i", 100 + i)
+        blob += struct.pack("<H", 0)
+    fast = DynamixelFake._fast_packet(bytes(blob[:-2]))
+    got = DynamixelBus(Wire(_status(1, struct.pack("<i", 7)) + fast), "p").fast_sync_read(132, 4, [1, 2])
+    assert got == {1: struct.pack("<i", 101), 2: struct.pack("<i", 102)}
+    stale_fast = DynamixelFake._fast_packet(bytes([0, 1]) + b"\x00\x00")  # an earlier fast-sync-read of 2 bytes
+    got = DynamixelBus(Wire(stale_fast + fast), "p").fast_sync_read(132, 4, [1, 2])
+    assert got == {1: struct.pack("<i", 101), 2: struct.pack("<i", 102)}
+
+
+def test_stale_packets_without_the_answer_still_fail():
+    with pytest.raises(BusTimeout, match="no status packet from Dynamixel ID 5"):
+        DynamixelBus(Wire(_status(3, b"\x00" * 4)), "p").read(5, 132, 4)
+    with pytest.raises(BusCrcError, match=f"{MAX_STALE + 1} stale status packets in a row"):
+        DynamixelBus(Wire(_status(3) * (MAX_STALE + 1) + READ_REPLY), "p").read(5, 132, 4)
+    assert DynamixelBus(Wire(_status(3) * MAX_STALE + READ_REPLY), "p").read(5, 132, 4) == struct.pack("<i", 2100)
+    with pytest.raises(DeviceFault, match="access error"):  # an error status is not stale: it fails
+        DynamixelBus(Wire(_status(5, error=7)), "p").read(5, 132, 4)
+    with pytest.raises(BusCrcError, match="CRC error"):  # a corrupted packet is not discarded as stale
+        DynamixelBus(Wire(READ_REPLY[:-1] + bytes([READ_REPLY[-1] ^ 1])), "p").read(5, 132, 4)
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,10 +1,16 @@
 """Dynamixel Protocol 2.0 in pure Python: packets, CRC16 (poly 0x8005, not reflected), byte stuffing, and a
-bus with ping / read / write / sync-read / sync-write / fast-sync-read over any pyserial-like transport.
+bus with ping / read / write / sync-read / sync-write / fast-sync-read / bulk-read over any pyserial-like
+transport.
 
 Instruction packet: ``FF FF FD 00 | ID | LEN (LE, = instruction + params + 2) | INST | params | CRC (LE)``;
 ``FF FF FD`` inside instruction/params is sent as ``FF FF FD FD``. Status packets carry INST 0x55 and an
 error byte. A fast-sync-read answer is one (unstuffed) status packet from ID 0xFE holding, per motor,
 ``error, id, data, crc`` (the last motor's crc is the packet's).
+
+A complete, valid status packet that does not answer the request in flight — from another ID, or from the
+right ID but of another instruction's shape (a late reply to an earlier request) — is discarded and the next
+one read, as the ROBOTIS SDK does for a wrong ID; at most ``MAX_STALE`` in a row (counted in
+``stats.extra["stale"]``), then it is a bus error. A missing answer after them is a timeout as usual.
 """
 
 from __future__ import annotations
@@ -17,8 +23,10 @@ from dgz_cli.hw.serial_port import IO_ERRORS, io_error
 
 HEADER = b"\xff\xff\xfd\x00"
 MAX_JUNK = 1024  # bytes skipped before a status header before the reply counts as garbage
+MAX_STALE = 8  # stale status packets (late replies to earlier requests) discarded per answer
 BROADCAST = 0xFE
 PING, READ, WRITE, SYNC_READ, SYNC_WRITE, FAST_SYNC_READ, STATUS = 0x01, 0x02, 0x03, 0x82, 0x83, 0x8A, 0x55
+BULK_READ = 0x92
 ERRORS = {1: "result fail", 2: "instruction error", 3: "CRC error", 4: "data range error",
           5: "data length error", 6: "data limit error", 7: "access error"}
 
@@ -69,6 +77,7 @@ class DynamixelBus:
         self.port = port
         self.baud = f" at {baudrate} baud" if baudrate else ""
         self.stats = BusStats()
+        self._stale_run = 0
 
     # -- raw I/O -----------------------------------------------------------------------------------
     def _send(self, pkt: bytes) -> None:
@@ -150,32 +159,43 @@ class DynamixelBus:
             raise DeviceFault(f"{self.port}: Dynamixel ID {dxl_id} reports {what}{alert}",
                               "read its Hardware Error Status (register 70), let it cool, and power-cycle the hand")
 
-    def _status(self, dxl_id: int) -> bytes:
-        got_id, error, params = self.receive(dxl_id)
-        if got_id != dxl_id:
-            raise self._crc_error(dxl_id, f"reply from ID {got_id}")
-        self._check_error(dxl_id, error)
-        return params
+    def _stale(self, dxl_id: int, why: str) -> None:
+        """Count one discarded stale status packet; too many in a row is a bus error."""
+        n = self.stats.extra.get("stale", 0) + 1
+        self.stats.extra["stale"] = n
+        self._stale_run += 1
+        if self._stale_run > MAX_STALE:
+            raise self._crc_error(dxl_id, f"{self._stale_run} stale status packets in a row (last: {why})")
+
+    def _status(self, dxl_id: int, length: int | None = None) -> bytes:
+        """The status packet answering the request in flight to ``dxl_id``: its params (``length`` bytes when
+        given; an error status carries none). Stale packets (another ID, or another length) are discarded."""
+        self._stale_run = 0
+        while True:
+            got_id, error, params = self.receive(dxl_id)
+            if got_id != dxl_id:
+                self._stale(dxl_id, f"a status from ID {got_id}")
+                continue
+            if length is not None and not error & 0x7F and len(params) != length:
+                self._stale(dxl_id, f"{len(params)} bytes instead of {length}")
+                continue
+            self._check_error(dxl_id, error)
+            return params
 
     # -- instructions ------------------------------------------------------------------------------
     def ping(self, dxl_id: int) -> tuple[int, int]:
         """(model number, firmware version)."""
         self._send(packet(dxl_id, PING))
-        params = self._status(dxl_id)
-        if len(params) < 3:
-            raise self._crc_error(dxl_id, "short ping reply")
+        params = self._status(dxl_id, 3)
         return struct.unpack("<H", params[:2])[0], params[2]
 
     def read(self, dxl_id: int, address: int, length: int) -> bytes:
         self._send(packet(dxl_id, READ, struct.pack("<HH", address, length)))
-        data = self._status(dxl_id)
-        if len(data) != length:
-            raise self._crc_error(dxl_id, f"{len(data)} bytes instead of {length}")
-        return data
+        return self._status(dxl_id, length)
 
     def write(self, dxl_id: int, address: int, data: bytes) -> None:
         self._send(packet(dxl_id, WRITE, struct.pack("<H", address) + bytes(data)))
-        self._status(dxl_id)
+        self._status(dxl_id, 0)
 
     def sync_write(self, address: int, length: int, data: dict[int, bytes]) -> None:
         params = struct.pack("<HH", address, length)
@@ -189,20 +209,30 @@ class DynamixelBus:
         self._send(packet(BROADCAST, SYNC_READ, sync_params(address, length, ids)))
         out = {}
         for dxl_id in ids:
-            out[dxl_id] = self._status(dxl_id)
-            if len(out[dxl_id]) != length:
-                raise self._crc_error(dxl_id, f"{len(out[dxl_id])} bytes instead of {length}")
+            out[dxl_id] = self._status(dxl_id, length)
         return out
+
+    def bulk_read(self, requests: dict[int, tuple[int, int]]) -> dict[int, bytes]:
+        """Protocol 2.0 bulk read (0x92): ``{id: (address, length)}`` → ``{id: data}``, one status packet per
+        motor in request order."""
+        params = b"".join(struct.pack("<BHH", dxl_id, address, length)
+                          for dxl_id, (address, length) in requests.items())
+        self._send(packet(BROADCAST, BULK_READ, params))
+        return {dxl_id: self._status(dxl_id, length) for dxl_id, (_, length) in requests.items()}
 
     def fast_sync_read(self, address: int, length: int, ids: list[int]) -> dict[int, bytes]:
         self._send(packet(BROADCAST, FAST_SYNC_READ, sync_params(address, length, ids)))
-        got_id, body = self._receive_raw(ids[0], stuffed=False)
-        if got_id != BROADCAST:
-            raise self._crc_error(ids[0], f"fast-sync-read answered by ID {got_id}, not broadcast")
-        params = body[1:]  # error1 id1 data1 crc1 … error_n id_n data_n (the last crc is the packet's)
         block = length + 4
-        if len(params) != len(ids) * block - 2:
-            raise self._crc_error(ids[0], f"fast-sync-read reply of {len(params)} bytes for {len(ids)} motors")
+        self._stale_run = 0
+        while True:
+            got_id, body = self._receive_raw(ids[0], stuffed=False)
+            params = body[1:]  # error1 id1 data1 crc1 … error_n id_n data_n (the last crc is the packet's)
+            if got_id != BROADCAST:
+                self._stale(ids[0], f"a status from ID {got_id}, not the broadcast fast-sync-read reply")
+            elif len(params) != len(ids) * block - 2:
+                self._stale(ids[0], f"a fast-sync-read reply of {len(params)} bytes for {len(ids)} motors")
+            else:
+                break
         out = {}
         for k, dxl_id in enumerate(ids):
             start = k * block

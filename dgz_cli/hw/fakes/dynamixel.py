@@ -1,7 +1,10 @@
 """Fake Dynamixel Protocol 2.0 bus on a pty: one control table (bytearray) per ID, XC330-like addresses.
 
-Implements ping, read, write, sync-read, sync-write and fast-sync-read (switch off with
-``fast_sync=False`` to exercise the driver's fallback). With torque on, a motor moves toward its goal
+Implements ping (also broadcast), read, write, sync-read, sync-write, fast-sync-read (switch off with
+``fast_sync=False`` to exercise the driver's fallback) and bulk read (0x92: ``ID, address, length`` per
+motor; each motor answers with its own status packet in request order, a read past its table with access
+error 7; as on a real bus, where each motor waits for the previous one's status packet, the motors after an
+absent ID stay silent; a malformed parameter block is not answered). With torque on, a motor moves toward its goal
 position at ``rate`` ticks/s; present current carries one tick of deterministic sensor noise.
 """
 
@@ -11,6 +14,7 @@ import struct
 
 from dgz_cli.hw.dynamixel import (
     BROADCAST,
+    BULK_READ,
     FAST_SYNC_READ,
     HEADER,
     PING,
@@ -99,6 +103,8 @@ class DynamixelFake(PtyFake):
                 blob += bytes([0x80 if self.fault == "exception" else 0, i]) + self._read(i, addr, length)
                 blob += struct.pack("<H", crc16(bytes(blob)))
             return self._fast_packet(bytes(blob[:-2]))
+        if inst == BULK_READ:
+            return self._bulk_read(params) if dxl_id == BROADCAST else None
         if inst == PING and dxl_id == BROADCAST:  # every motor answers, in ID order (as real ones do)
             return b"".join(self._status(i, bytes(self.tables[i][0:2]) + bytes([self.tables[i][6]]))
                             for i in sorted(self.tables))
@@ -115,6 +121,20 @@ class DynamixelFake(PtyFake):
         if inst == WRITE:
             return self._status(dxl_id, error=self._write(dxl_id, struct.unpack("<H", params[:2])[0], params[2:]))
         return packet(dxl_id, STATUS, bytes([0x02]))  # instruction error
+
+    def _bulk_read(self, params: bytes) -> bytes | None:
+        if not params or len(params) % 5:
+            return None  # not a list of (ID, address, length): no motor recognises its part
+        out = b""
+        for k in range(0, len(params), 5):
+            i, addr, length = struct.unpack("<BHH", params[k:k + 5])
+            if i not in self.tables:
+                break  # the next motors wait for this one's status packet, which never comes
+            if addr + length > len(self.tables[i]):
+                out += self._status(i, error=ACCESS_ERROR)
+            else:
+                out += self._status(i, self._read(i, addr, length))
+        return out or None
 
     @staticmethod
     def _fast_packet(params: bytes) -> bytes:
