@@ -275,7 +275,9 @@ def bench_policy(
 
     result = policy_bench.run(preset, nodes, threads)
     if not as_json:
-        out.print(f"{preset}: batch-1 forward {result['batch1_forward_ms']} ms, {result['forward_graphs_per_s_b1024']} "
+        from rich.markup import escape
+
+        out.print(f"{escape(preset)}: batch-1 forward {result['batch1_forward_ms']} ms, {result['forward_graphs_per_s_b1024']} "
                   f"graphs/s at 1024, PPO {result['ppo_update_samples_per_s']} samples/s")
     sys.stdout.write(json.dumps(result, indent=2) + "\n")
 
@@ -292,6 +294,7 @@ def bench_onboard(
 
     result = onboard_bench.run([h for h in (hands or "").split(",") if h] or None, repeat, asset_root)
     if not as_json:
+        from rich.markup import escape
         from rich.table import Table
 
         t = Table(title="dgz bench onboard (median seconds per hand)")
@@ -300,7 +303,7 @@ def bench_onboard(
         for c in cols:
             t.add_column(c, justify="right")
         for name, r in result["hands"].items():
-            t.add_row(name, *(f"{r[c]:.3f}" for c in cols))
+            t.add_row(escape(str(name)), *(f"{r[c]:.3f}" for c in cols))
         out.print(t)
     sys.stdout.write(json.dumps(result, indent=2) + "\n")
 

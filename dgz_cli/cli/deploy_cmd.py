@@ -100,8 +100,8 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
     if replay is not None:
         summary = replay_log(replay, asset_root=asset_root)
         console.print(f"replayed {summary['steps']} steps of {escape(str(replay))} on the simulated "
-                      f"{summary['spec']}: max tracking error {summary['max_tracking_error']:.4f} rad, final "
-                      f"{summary['final_tracking_error']:.4f} rad (logged stop: {summary['logged_reason']})")
+                      f"{escape(str(summary['spec']))}: max tracking error {summary['max_tracking_error']:.4f} rad, final "
+                      f"{summary['final_tracking_error']:.4f} rad (logged stop: {escape(str(summary['logged_reason']))})")
         return 0
     if not hand:
         raise DgzError("no --hand given", "name a hand: revo2, inspire, leap (hardware), sim, or a hand file path")
@@ -196,7 +196,7 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
             info = driver.info
             where = "fake device " + port if fake_dev else ("MuJoCo" if simulated or hand_only else port)
             console.print(f"connected {escape(hand)} on {escape(where)}: {escape(info.summary())}")
-            console.print(f"arm {arm_if.name}: {escape(arm_if.connect())}")
+            console.print(f"arm {escape(str(arm_if.name))}: {escape(arm_if.connect())}")
             phases = f"{ep.grasp_steps} grasp + {ep.lift_steps} lift + {ep.hold_steps} hold steps"
             if not dry_run and (not (simulated or hand_only) or arm_if.name == "piper"):
                 moves = "the arm follows the wrist command and lifts, " if arm_if.moves else ""
