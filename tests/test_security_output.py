@@ -124,3 +124,84 @@ def test_show_png_never_replaces_a_device_or_fifo(tmp_path):
     assert fifo.is_fifo() and _leftovers(tmp_path) == []
     call(tmp_path / "ok.png")
     assert (tmp_path / "ok.png").read_bytes()[:4] == b"\x89PNG"
+
+
+# --------------------------------------------------------------------------------------------
+# dgz eval --json/--csv: unusable targets are refused before the evaluation runs
+# --------------------------------------------------------------------------------------------
+
+def _evaluate(monkeypatch, json_out=None, csv_out=None):
+    from rich.console import Console
+
+    from dgz_cli.cli import sim_cmd
+
+    def never(*a, **k):
+        raise AssertionError("the evaluation started before the output paths were checked")
+    monkeypatch.setattr(sim_cmd, "_policy_factory", never)
+    return sim_cmd.evaluate("scripted", ["dgz_tri"], "sphere", 1, 0, False, json_out, csv_out, None,
+                            Console(record=True))
+
+
+@pytest.mark.parametrize("option", ["json", "csv"])
+@pytest.mark.parametrize("what, expect", [
+    ("folder", "it exists and is a folder"),
+    ("dev-null", "not a regular file"),
+    ("fifo", "not a regular file"),
+    ("symlink-to-folder", "it exists and is a folder"),
+    ("parent-is-a-file", "(is not a folder|Not a directory)"),
+    ("name-too-long", "(?i)file name too long"),
+])
+def test_eval_outputs_are_checked_before_the_evaluation(monkeypatch, tmp_path, option, what, expect):
+    (tmp_path / "d").mkdir()
+    (tmp_path / "file").write_text("x")
+    if what == "fifo":
+        os.mkfifo(tmp_path / "f")
+    if what == "symlink-to-folder":
+        (tmp_path / "link").symlink_to(tmp_path / "d")
+    target = {"folder": tmp_path / "d", "dev-null": Path("/dev/null"), "fifo": tmp_path / "f",
+              "symlink-to-folder": tmp_path / "link", "parent-is-a-file": tmp_path / "file" / "sub" / "r.json",
+              "name-too-long": tmp_path / ("r" * 300 + ".json")}[what]
+    kw = {f"{option}_out": target}
+    with pytest.raises(DgzError, match=expect) as info:
+        _evaluate(monkeypatch, **kw)
+    assert str(target) in info.value.message and "\n" not in info.value.message
+    assert os.path.exists("/dev/null") and not Path("/dev/null").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["d", "file"] + (["f"] if what == "fifo" else []) + (["link"] if what == "symlink-to-folder" else []))
+
+
+def test_eval_same_json_and_csv_is_refused(monkeypatch, tmp_path):
+    with pytest.raises(DgzError, match="--json and --csv name the same file"):
+        _evaluate(monkeypatch, tmp_path / "r.out", tmp_path / "r.out")
+
+
+def test_eval_good_targets_pass_the_check(monkeypatch, tmp_path):
+    """A new file in a folder still to be created, and a symlink to a regular file, reach the evaluation."""
+    (tmp_path / "old.json").write_text("{}")
+    (tmp_path / "alias.json").symlink_to(tmp_path / "old.json")
+    with pytest.raises(AssertionError, match="evaluation started"):
+        _evaluate(monkeypatch, tmp_path / "new" / "deeper" / "r.json", tmp_path / "alias.json")
+
+
+def test_eval_unwritable_folder_is_refused_before_the_evaluation(monkeypatch, tmp_path):
+    """A folder the user cannot write to (or a read-only mount): root passes permission bits, so access(2)'s
+    answer is simulated here; the next test checks the real thing as an unprivileged user."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **k: False if Path(p) == ro else real(p, mode, **k))
+    with pytest.raises(DgzError, match=f"folder {ro} is not writable"):
+        _evaluate(monkeypatch, csv_out=ro / "sub" / "r.csv")
+    assert list(ro.iterdir()) == []
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root passes permission bits")
+def test_eval_unwritable_folder_is_refused_for_real(monkeypatch, tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    os.chmod(ro, 0o555)
+    try:
+        with pytest.raises(DgzError, match=f"folder {ro} is not writable"):
+            _evaluate(monkeypatch, json_out=ro / "r.json")
+    finally:
+        os.chmod(ro, 0o755)

@@ -39,8 +39,15 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.envconfig import EnvConfig
-    from dgz_cli.spec.io import atomic_write, load_spec
+    from dgz_cli.spec.io import atomic_write, check_output, load_spec
 
+    import os
+
+    for option, target in (("--json", json_out), ("--csv", csv_out)):  # refused before the evaluation runs
+        if target is not None:
+            check_output(target, option)
+    if json_out is not None and csv_out is not None and os.path.realpath(json_out) == os.path.realpath(csv_out):
+        raise DgzError(f"--json and --csv name the same file {json_out}", "give them different paths")
     make_policy, meta = _policy_factory(policy)
     specs = [load_spec(resolve_spec(h)) for h in hands]
     if zero_shot:

@@ -115,6 +115,40 @@ def spec_to_yaml(spec: HandSpec) -> str:
     return HEADER + yaml.dump(data, Dumper=_Dumper, sort_keys=False, width=120, allow_unicode=True)
 
 
+def check_output(path: Path, option: str = "output") -> None:
+    """Refuse an output target up front (before a long run), with the one line :func:`atomic_write_bytes`
+    would give at the end: a target (through symlinks) that exists and is not a regular file, a name too
+    long, or a folder that cannot be created or written to (nearest existing ancestor not a folder, or not
+    writable — a read-only mount included)."""
+    import stat
+
+    path = Path(path)
+    hint = f"choose another {option} path"
+    target = Path(os.path.realpath(path))
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise DgzError(f"cannot write {path}: {exc.strerror or exc}", hint) from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device, FIFO or socket)"
+        raise DgzError(f"cannot write {path}: it exists and is {kind}", f"name a new or regular file as {option}")
+    folder = target.parent
+    while not os.path.lexists(folder) and folder != folder.parent:
+        folder = folder.parent
+    if not os.path.isdir(folder):
+        raise DgzError(f"cannot write {path}: {folder} is not a folder", hint)
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    if len(target.name.encode("utf-8", "surrogateescape")) > name_max:
+        raise DgzError(f"cannot write {path}: file name too long (more than {name_max} bytes)", hint)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise DgzError(f"cannot write {path}: folder {folder} is not writable", hint)
+
+
 def atomic_write_bytes(path: Path, data: bytes, *, inputs=()) -> None:
     """Write ``data`` to ``path`` via a temporary file in the same directory and a rename, so a reader
     (or a crash) never sees a half-written file; the result gets the usual umask-derived mode.
