@@ -69,8 +69,9 @@ def _deploy_actions(policy: str, tmp_path, contract=None):
     return np.array([s["action"] for s in steps if s["phase"] in ("grasp", "lift", "hold")]), header, end
 
 
-@pytest.mark.parametrize("policy,contract", [("scripted", None), ("dgz-cpu-warmstart", None), ("scripted", LEVERS)],
-                         ids=["scripted", "checkpoint", "scripted-guided-markov"])
+@pytest.mark.parametrize("policy,contract", [("scripted", None), ("dgz-cpu-warmstart", None), ("scripted", LEVERS),
+                                            ("dgz-cpu-guided", None)],
+                         ids=["scripted", "checkpoint", "scripted-guided-markov", "checkpoint-guided-prior"])
 def test_deploy_on_sim_reproduces_eval(policy, contract, tmp_path):
     expected, record = _eval_actions(policy, contract)
     got, header, end = _deploy_actions(policy, tmp_path, contract)

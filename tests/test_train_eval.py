@@ -120,7 +120,7 @@ def test_train_bad_options(tmp_path, args, message):
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart"])
+@pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart", "dgz-cpu-guided"])
 def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     from conftest import REPO
     from dgz_cli.policy.graph import to_tensors
@@ -130,7 +130,7 @@ def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     from dgz_cli.spec.io import load_spec
 
     path = REPO / "policies" / name
-    loaded = LoadedPolicy(path)  # format 1, migrated on load
+    loaded = LoadedPolicy(path)  # the first two are format 1, migrated on load
     meta = loaded.meta
     assert set(meta.training_hands) == {"allegro", "shadow", "schunk_svh", "ability"}
     assert meta.contract.action.finger_scale == 0.015 and meta.contract.episode.grasp_steps == 120
