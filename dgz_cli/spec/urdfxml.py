@@ -453,8 +453,18 @@ def captured_mujoco_warnings():
     import mujoco
 
     messages: list[str] = []
+    pending: list[BaseException] = []
+
+    def on_warning(msg) -> None:
+        # Called from MuJoCo's C code: an exception (a Ctrl-C landing here) must not unwind through it (the
+        # process aborts); keep it and raise it once the compile has returned to Python.
+        try:
+            messages.append(" ".join(str(msg).split()))
+        except BaseException as exc:  # noqa: BLE001
+            pending.append(exc)
+
     previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda msg: messages.append(" ".join(str(msg).split())))
+    mujoco.set_mju_user_warning(on_warning)
     try:
         with pywarnings.catch_warnings(record=True) as caught:
             pywarnings.simplefilter("always")
@@ -462,3 +472,5 @@ def captured_mujoco_warnings():
         messages.extend(" ".join(str(w.message).split()) for w in caught)
     finally:
         mujoco.set_mju_user_warning(previous)
+    if pending:
+        raise pending[0]
