@@ -44,3 +44,19 @@ def test_hardware_files_resolve_by_name_folder_and_path():
     assert hand_config_path("revo2") == path
     assert hand_config_path(str(SPECS / "revo2")) == path
     assert hand_config_path(str(path)) == path
+
+
+def test_a_symlinked_asset_root_gives_a_relative_reference(tmp_path):
+    """Through a symlink to the asset root (or to a folder inside it), a spec still records its URDF relative
+    to the root, so re-onboarding reproduces the shipped spec wherever the assets are mounted."""
+    from dgz_cli.spec.catalog import PACKAGE_DATA, urdf_reference
+
+    real = tmp_path / "real"
+    (real / "hands" / "tri").mkdir(parents=True)
+    urdf = real / "hands" / "tri" / "tri.urdf"
+    urdf.write_bytes((PACKAGE_DATA / "hands" / "dgz_tri.urdf").read_bytes())
+    link = tmp_path / "link"
+    link.symlink_to(real)
+    assert urdf_reference(link / "hands" / "tri" / "tri.urdf", link) == "hands/tri/tri.urdf"
+    assert urdf_reference(urdf, link) == "hands/tri/tri.urdf"
+    assert urdf_reference(link / "hands" / "tri" / "tri.urdf", real) == "hands/tri/tri.urdf"

@@ -76,11 +76,13 @@ def asset_root(option: str | Path | None = None, required: bool = False) -> Path
 
 def urdf_reference(path: Path, root: Path | None) -> str:
     """How a spec records its source file: dgz://…, relative to the asset root, or absolute."""
-    path = Path(path).resolve()
+    given, path = Path(path).absolute(), Path(path).resolve()
     if path.is_relative_to(PACKAGE_DATA):
         return BUILTIN_PREFIX + path.relative_to(PACKAGE_DATA).as_posix()
-    if root is not None and path.is_relative_to(root):
-        return path.relative_to(root).as_posix()
+    if root is not None:  # a symlinked asset root (or hand folder) still gives a relative reference
+        for p, r in ((path, Path(root).resolve()), (given, Path(root).absolute())):
+            if p.is_relative_to(r):
+                return p.relative_to(r).as_posix()
     return str(path)
 
 
