@@ -217,10 +217,7 @@ class GraspEnv:
         """(B, 6) the contract's wrist guidance from observations' global features (B, global_dim), the
         same computation the deploy runtime makes from the observation it builds."""
         c = self.cfg.contract
-        if c.guidance.gain == 0.0:
-            return np.zeros((self.B, 6))
-        target = glob[:, c.observation.global_col("target")].astype(np.float64) * c.observation.target_scale
-        return c.guidance.delta(target, self.grasp_offset, self.t < c.episode.grasp_steps)
+        return c.guidance_action(glob, self.grasp_offset, self.t < c.episode.grasp_steps)
 
     def set_targets(self, targets: np.ndarray, alpha: np.ndarray | None = None) -> None:
         """New finger joint targets (B, L) rad for the next step; ``alpha`` (B, N, n_prim) the normalized

@@ -231,6 +231,16 @@ class ControlContract(_Frozen):
             raise ValueError("the closing prior reads the 'phase' block: use an observation layout that has it")
         return self
 
+    def guidance_action(self, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """(B, 6) the wrist guidance from observations' global features (B, global_dim): the target block
+        decoded to metres, then :meth:`WristGuidance.delta`; zeros when the guidance is off. The simulator
+        and the deploy loop both call this, on the observation the policy sees."""
+        if self.guidance.gain == 0.0:
+            return np.zeros(np.shape(glob)[:1] + (6,))
+        lay = self.observation
+        target = np.asarray(glob)[:, lay.global_col("target")].astype(np.float64) * lay.target_scale
+        return self.guidance.delta(target, grasp_offset, active)
+
     def prior_action(self, nodes: np.ndarray, glob: np.ndarray, mask: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
         """(B, action_dim) the closing prior's normalized action (zeros when disabled) from an observation:
         nodes (B, N, node_dim), global (B, global_dim), mask (B, N, 3), node_valid (B, N)."""

@@ -10,13 +10,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from dgz_cli.spec.contract import ControlContract
-
-
-class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+from dgz_cli.spec.contract import ControlContract, _Frozen
 
 
 class RewardWeights(_Frozen):
