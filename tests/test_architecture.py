@@ -25,6 +25,7 @@ ALLOWED = {
     "rl": {"spec", "policy", "rl"},
     "runtime": {"spec", "hw", "sim", "policy", "rl", "runtime"},
     "bench": {"spec", "onboard", "sim", "policy", "rl", "bench"},
+    "assets": {"spec", "assets"},
 }
 TERMINAL = {"typer", "rich", "click"}
 

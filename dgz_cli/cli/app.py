@@ -22,6 +22,8 @@ app = typer.Typer(no_args_is_help=True, pretty_exceptions_enable=False, add_comp
                   help="dgz — DexGrasp-Zero: onboard any dexterous hand from its URDF and grasp with one policy.")
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that print JSON (throughput, latency, peak memory).")
 app.add_typer(bench_app, name="bench")
+assets_app = typer.Typer(no_args_is_help=True, help="Hand and object models from their pinned upstream repositories.")
+app.add_typer(assets_app, name="assets")
 out = Console(emoji=False)  # names from input files: no :emoji: codes (markup is escaped where printed)
 err = Console(stderr=True, emoji=False)
 
@@ -187,6 +189,26 @@ def evaluate(
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, roll=roll))
+
+
+@assets_app.command("fetch")
+def assets_fetch(
+    hands: Optional[List[str]] = typer.Option(None, "--hands", help="hands to fetch, comma-separated or repeated "
+                                              "(default: all; 'none' for no hand)"),
+    objects: Optional[List[str]] = typer.Option(None, "--objects", help="object sets: ycb45 (default) or none"),
+    dest: Optional[Path] = typer.Option(None, "--dest", help="asset root to fill (default: the user's cache folder, "
+                                        "where dgz finds it without DGZ_ASSET_ROOT)"),
+    mirror: Optional[str] = typer.Option(None, "--mirror", help="base URL serving the pinned archives by file name "
+                                         "(default: $DGZ_ASSET_MIRROR, else the upstream hosts)"),
+    force: bool = typer.Option(False, "--force", help="fetch again even where the files verify"),
+    registry: Optional[Path] = typer.Option(None, "--registry", help="another asset registry (JSON, same schema as "
+                                            "dgz_cli/assets/registry.json)"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bars"),
+) -> None:
+    """Download the pinned upstream archives, verify every file's sha256 and lay out hands/ and objects/ycb45/."""
+    from dgz_cli.cli import assets_cmd
+
+    raise typer.Exit(assets_cmd.fetch(hands, objects, dest, mirror, force, registry, out, progress=not quiet))
 
 
 @bench_app.command("sim")

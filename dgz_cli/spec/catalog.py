@@ -3,7 +3,11 @@
 One hand, one folder: ``hand_specs/<hand>/`` holds ``spec.yaml`` (the HandSpec), ``overrides.yaml``
 (human overrides, if any), ``hardware.yaml`` (the hardware control table, if the hand has a driver)
 and a provenance ``README.md``. A spec names its URDF relative to the asset root (``--asset-root``
-or ``DGZ_ASSET_ROOT``), or as ``dgz://hands/<file>`` for the small hand models shipped inside the package.
+or ``DGZ_ASSET_ROOT``, else the folder `dgz assets fetch` fills by default), or as ``dgz://hands/<file>`` for
+the small hand models shipped inside the package.
+
+``hand_specs/`` and ``policies/`` are top-level folders of the checkout; a wheel carries them as package data
+under ``dgz_cli/shipped/`` (see setup.py). :func:`specs_dir` and :func:`policies_dir` find either.
 """
 
 from __future__ import annotations
@@ -19,12 +23,43 @@ PACKAGE_DATA = Path(__file__).resolve().parents[1] / "data"
 BUILTIN_PREFIX = "dgz://"
 SPEC_FILE = "spec.yaml"
 HARDWARE_FILE = "hardware.yaml"
+ASSET_MARKER = ".dgz-assets.json"  # written last by `dgz assets fetch` into the asset root it filled
+SHIPPED_IN_PACKAGE = Path(__file__).resolve().parents[1] / "shipped"  # wheel installs (setup.py copies them)
+CHECKOUT = Path(__file__).resolve().parents[2]
+
+
+def _shipped(folder: str) -> Path:
+    """``hand_specs`` or ``policies``: inside the installed package (a wheel), else beside it (a checkout)."""
+    packaged = SHIPPED_IN_PACKAGE / folder
+    return packaged if packaged.is_dir() else CHECKOUT / folder
 
 
 def specs_dir() -> Path:
-    """The shipped hand registry: $DGZ_HAND_SPECS, else ``hand_specs/`` beside the package."""
+    """The shipped hand registry: $DGZ_HAND_SPECS, else ``hand_specs/`` (checkout or package data)."""
     env = os.environ.get(SPECS_ENV)
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "hand_specs"
+    return Path(env) if env else _shipped("hand_specs")
+
+
+def policies_dir() -> Path:
+    """The shipped policies: ``policies/`` (checkout or package data)."""
+    return _shipped("policies")
+
+
+def policy_ref(ref: str) -> str:
+    """A ``--policy`` value with a bare shipped name (``dgz-cpu-warmstart``) turned into its folder's path, so it
+    resolves in a wheel install as in a checkout; anything else is returned unchanged."""
+    if ref and "/" not in ref and "\\" not in ref and ref not in (".", "..") and not Path(ref).is_dir():
+        candidate = policies_dir() / ref
+        if candidate.is_dir():
+            return str(candidate)
+    return ref
+
+
+def default_asset_dir() -> Path:
+    """Where `dgz assets fetch` puts the asset root by default: the user's cache folder (platformdirs)."""
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("dgz")) / "assets"
 
 
 def hand_dir(name: str) -> Path:
@@ -63,10 +98,15 @@ def resolve_spec(name_or_path: str) -> Path:
 
 
 def asset_root(option: str | Path | None = None, required: bool = False) -> Path | None:
+    """``--asset-root``, else $DGZ_ASSET_ROOT, else the default folder of `dgz assets fetch` once it holds a fetch."""
     value = option if option not in (None, "") else os.environ.get(ASSET_ENV)
     if not value:
+        fetched = default_asset_dir()
+        if (fetched / ASSET_MARKER).is_file():
+            return fetched.resolve()
         if required:
-            raise AssetError("no asset root set", f"pass --asset-root DIR or set {ASSET_ENV} (CI uses ../shared/assets)")
+            raise AssetError("no asset root set", f"run `dgz assets fetch`, pass --asset-root DIR or set {ASSET_ENV} "
+                                                  "(CI uses ../shared/assets)")
         return None
     root = Path(value).expanduser()
     if not root.is_dir():
