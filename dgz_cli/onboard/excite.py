@@ -31,6 +31,7 @@ from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.kinematics import rest_pose
 
 PRIMITIVES = ("FLEX", "ABD", "ROT")
+THUMB_WEAK = 0.3  # a thumb motion whose component toward the opposed fingertip is below this is judged by +n
 
 
 @dataclass(frozen=True)
@@ -102,12 +103,13 @@ class Exciter:
         self.poser.pose(q)
         return (t1 - t0) / step, w, anchor, t0
 
-    def scores(self, q: dict[str, float], joint: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def scores(self, q: dict[str, float], joint: str, ref: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         v, w, anchor, tip = self._motion(q, joint)
         r = tip - anchor
         lever = float(np.linalg.norm(r))
         rh = _unit(r)
-        n = self._reference_normal(joint)
+        n = self._reference_normal(joint) if ref is None else ref
         n_perp = _unit(n - (n @ rh) * rh)
         m = np.cross(rh, n_perp)
         s = np.array([v @ n_perp / max(lever, 1e-6), v @ m / max(lever, 1e-6), w @ rh])
@@ -127,13 +129,39 @@ class Exciter:
         return tips[[k for k, c in enumerate(self.classes) if c != "thumb"]].mean(0)
 
     def _reference_normal(self, joint: str) -> np.ndarray:
-        """The direction 'closing' moves a unit toward: +n, or for the thumb the opposed fingertip."""
+        """The direction 'closing' moves a unit toward: +n; for a digit of a radial hand (claw, jaw) the grasp
+        axis; for the thumb its own curl (see :meth:`_thumb_curl`)."""
+        i = self.finger_of.get(joint)
+        if i is None:
+            return self.frame.normal
         if self._is_thumb(joint):
             tips = tip_positions(self.poser, self.st)
-            return _unit(self._opposed_target() - tips[self.finger_of[joint]])
+            return _unit(self._opposed_target() - tips[i])
+        if self.frame.radial:
+            return self.frame.toward_axis(tip_positions(self.poser, self.st)[i])
         return self.frame.normal
 
-    def _sign(self, prim: str, joint: str, v: np.ndarray, w: np.ndarray, n_perp: np.ndarray) -> tuple[int, float]:
+    def _thumb_curl(self, joint: str) -> np.ndarray | None:
+        """The thumb's own curl at the current pose: the direction its last revolute joint moves the thumb tip
+        about that joint's axis taken at ``joint``'s anchor, oriented to close — toward the opposed fingertip, or
+        toward the palm side (+n) when that gap barely changes. None for a thumb without a revolute joint."""
+        chain = self.st.chains[self.finger_of[joint]]
+        last = next((j for j in reversed(chain.joints) if self.kin.joints[j].type != "prismatic"), None)
+        if last is None:
+            return None
+        tips = tip_positions(self.poser, self.st)
+        own = tips[self.finger_of[joint]]
+        curl = _unit(np.cross(self.poser.joint_axis(last), own - self.poser.joint_anchor(joint)))
+        if np.linalg.norm(curl) < 1e-9:
+            return None
+        toward = _unit(self._opposed_target() - own)
+        d = curl @ toward
+        if abs(d) < THUMB_WEAK:
+            d = curl @ self.frame.normal
+        return curl if d >= 0 else -curl
+
+    def _sign(self, prim: str, joint: str, v: np.ndarray, w: np.ndarray, n_perp: np.ndarray,
+              ref: np.ndarray | None = None) -> tuple[int, float]:
         """(sign, strength ∈ [0,1]) of the joint's + direction for primitive ``prim``."""
         fr = self.frame
         i = self.finger_of.get(joint)
@@ -143,7 +171,7 @@ class Exciter:
         idx = {c: k for k, c in enumerate(self.classes)}
         non_thumb = [k for k, c in enumerate(self.classes) if c != "thumb"]
         if prim == "FLEX":
-            d = v @ self._reference_normal(joint)
+            d = v @ (self._reference_normal(joint) if ref is None else ref)
             return (1 if d >= 0 else -1), abs(d) / max(np.linalg.norm(v), 1e-9)
         if prim == "ABD":
             if cls == "thumb":
@@ -180,6 +208,21 @@ class Exciter:
         order = np.argsort(-a)
         prim, margin, note = PRIMITIVES[order[0]], float(a[order[0]] - a[order[1]]), "rest pose"
         i = self.finger_of.get(joint)
+        curl = self._thumb_curl(joint) if self._is_thumb(joint) else None
+        if curl is not None:
+            # the thumb's own curl axis decides its primitive; opposition (the reference above) gives the scores
+            # and sign when it agrees, the curl when it does not (a diagonal thumb beside the palm)
+            s2, v2, w2, n2 = self.scores(q, joint, ref=curl)
+            a2 = np.abs(s2) / max(float(np.linalg.norm(s2)), 1e-12)
+            o2 = np.argsort(-a2)
+            if o2[0] != order[0]:
+                prim, margin = PRIMITIVES[o2[0]], float(a2[o2[0]] - a2[o2[1]])
+                if prim != "ROT":
+                    sign, strength = self._sign(prim, joint, v2, w2, n2, ref=curl)
+                    self.poser.pose(q)
+                    return self._response(joint, prim, sign, margin, a2, strength,
+                                          "rest pose; judged by the thumb's own curl axis")
+                a, note = a2, "rest pose; judged by the thumb's own curl axis"
         if prim == "ROT" and first_pass is not None and i is not None and self.classes[i] != "thumb":
             q_flex = self._flexed_pose(joint, first_pass)
             if q_flex is not None:

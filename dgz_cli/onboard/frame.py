@@ -25,6 +25,9 @@ from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.errors import OnboardError
 from dgz_cli.spec.kinematics import rest_pose
 
+THUMB_AGREE = 0.95  # a thumb agrees with the other digits less than this (mean cosine of curl and direction)
+THUMB_MARGIN = 0.02  # ... and less than the runner-up by more than this
+RADIAL = 0.5  # |mean curl| below this: the digits close toward each other (no common palm side)
 CLASS_NAMES = {1: ["middle"], 2: ["middle", "ring"], 3: ["index", "middle", "ring"],
                4: ["index", "middle", "ring", "little"]}
 
@@ -40,6 +43,12 @@ class PalmFrame:
     side: str
     fingers: tuple[str, ...]  # class per chain, aligned with Structure.chains
     thumb_margin: float
+    radial: bool = False  # the digits close toward a common axis from different sides (claw, jaw)
+
+    def toward_axis(self, p: np.ndarray) -> np.ndarray:
+        """Unit direction from point ``p`` toward the grasp axis (the line through the centre along f)."""
+        off = (p - self.center) - ((p - self.center) @ self.finger_axis) * self.finger_axis
+        return _unit(-off)
 
     def to_palm(self, v: np.ndarray) -> np.ndarray:
         """World direction → palm-frame coordinates (f, l, n)."""
@@ -62,31 +71,67 @@ def tip_positions(poser: Poser, st: Structure) -> np.ndarray:
     return np.array([poser.link_pos(c.tip_link, c.tip_point) for c in st.chains])
 
 
+def _curls(kin: Kinematics, poser: Poser, st: Structure, tips: np.ndarray) -> np.ndarray:
+    """curl_i: the direction fingertip i moves when its last joint closes. A revolute joint closes toward the
+    wider side of its range; a prismatic digit (a jaw) closes toward the other fingertips."""
+    curls = []
+    for i, (c, t) in enumerate(zip(st.chains, tips)):
+        last = c.joints[-1]
+        if kin.joints[last].type == "prismatic":
+            axis = poser.joint_axis(last)
+            toward = np.delete(tips, i, axis=0).mean(0) - t if len(tips) > 1 else axis
+            v = axis if axis @ toward >= 0 else -axis
+        else:
+            v = np.cross(poser.joint_axis(last) * closing_sign(kin, last), t - poser.joint_anchor(last))
+        curls.append(_unit(v))
+    return np.array(curls)
+
+
+def find_thumb(curls: np.ndarray, dirs: np.ndarray) -> tuple[int | None, float]:
+    """The digit that agrees least with the others in how it curls and where it points (mean of the two
+    cosines over the other digits), if it stands out: (index, margin over the runner-up) or (None, 0)."""
+    nf = len(curls)
+    if nf < 3:
+        return None, 0.0
+    cos = 0.5 * (curls @ curls.T + dirs @ dirs.T)
+    agree = (cos.sum(1) - 1.0) / (nf - 1)
+    order = np.argsort(agree, kind="stable")
+    margin = float(agree[order[1]] - agree[order[0]])
+    if agree[order[0]] < THUMB_AGREE and margin > THUMB_MARGIN:
+        return int(order[0]), margin
+    return None, margin
+
+
 def estimate(kin: Kinematics, poser: Poser, st: Structure) -> PalmFrame:
     poser.pose(poser.rest())
     tips = tip_positions(poser, st)
     bases = np.array([poser.joint_anchor(c.joints[0]) for c in st.chains])
-    curls = []
-    for c, t in zip(st.chains, tips):
-        last = c.joints[-1]
-        axis = poser.joint_axis(last) * closing_sign(kin, last)
-        v = np.cross(axis, t - poser.joint_anchor(last)) if kin.joints[last].type != "prismatic" else axis
-        curls.append(_unit(v))
-    curls = np.array(curls)
+    curls = _curls(kin, poser, st, tips)
+    dirs = np.array([_unit(t - b) for t, b in zip(tips, bases)])
     nf = len(st.chains)
-
-    thumb, margin = None, 1.0
-    if nf >= 3:
-        cos = curls @ curls.T
-        agree = (cos.sum(1) - 1.0) / (nf - 1)
-        order = np.argsort(agree)
-        if agree[order[0]] < 0.9:
-            thumb = int(order[0])
-            margin = float(agree[order[1]] - agree[order[0]])
+    thumb, margin = find_thumb(curls, dirs)
     others = [i for i in range(nf) if i != thumb]
 
     pts = poser.geom_points(list(st.palm_group))
     center = pts.mean(0) if len(pts) else poser.link_pos(st.palm_link)
+    radial = thumb is None and nf >= 2 and float(np.linalg.norm(curls.mean(0))) < RADIAL
+    if radial:
+        # The digits close toward a common axis from different sides (a claw, two opposed digits, a parallel
+        # jaw): f runs from the palm centre to the mean fingertip (the grasp axis); n is the direction from
+        # the first digit's tip toward that axis (any choice orthogonal to f is as good: no digit is special).
+        f = _unit(tips.mean(0) - center)
+        n = np.zeros(3)
+        for t in tips:
+            off = (t - center) - ((t - center) @ f) * f
+            if np.linalg.norm(off) > 1e-4:
+                n = _unit(-off)
+                break
+        if np.linalg.norm(f) < 1e-6 or np.linalg.norm(n) < 1e-6:
+            raise OnboardError(f"{kin.source}: the palm frame is undefined (the fingertips surround no axis "
+                               f"in front of the palm)", "check --palm-link; the palm must lie behind the fingers")
+        l = np.cross(n, f)
+        across = sorted(others, key=lambda i: float(np.arctan2((bases[i] - center) @ l, (bases[i] - center) @ n)))
+        return _named(kin, center, n, f, l, "right", nf, None, across, margin, radial=True)
     # The non-thumb fingers curl about a common flexion axis a (their last joints): l = −a.
     flex_axes = [poser.joint_axis(st.chains[i].joints[-1]) * closing_sign(kin, st.chains[i].joints[-1])
                  for i in others if kin.joints[st.chains[i].joints[-1]].type != "prismatic"]
@@ -109,14 +154,19 @@ def estimate(kin: Kinematics, poser: Poser, st: Structure) -> PalmFrame:
     if thumb is not None and others:
         offset = (bases[thumb] - bases[others].mean(0)) @ l
         side = "right" if offset <= 0 else "left"
-    k = len(others)
+    across = sorted(others, key=lambda i: (bases[i] @ l) * (1 if side == "right" else -1))
+    return _named(kin, center, n, f, l, side, nf, thumb, across, margin)
+
+
+def _named(kin: Kinematics, center, n, f, l, side: str, nf: int, thumb: int | None, across: list[int],
+           margin: float, radial: bool = False) -> PalmFrame:
+    k = len(across)
     if k not in CLASS_NAMES:
         raise OnboardError(f"{kin.source}: found {k} non-thumb fingers; dgz names at most 4",
                            "check that the palm link is right (--palm-link)")
-    across = sorted(others, key=lambda i: (bases[i] @ l) * (1 if side == "right" else -1))
     classes = [""] * nf
     for name, i in zip(CLASS_NAMES[k], across):
         classes[i] = name
     if thumb is not None:
         classes[thumb] = "thumb"
-    return PalmFrame(center, n, f, l, side, tuple(classes), margin)
+    return PalmFrame(center, n, f, l, side, tuple(classes), margin, radial)

@@ -50,6 +50,7 @@ def functional_check(spec: HandSpec, poser) -> list[str]:
     rest = _tips(spec, poser)
     center = np.array(spec.palm.center)
     lateral = np.array(spec.palm.lateral)
+    normal = np.array(spec.palm.normal)
     fingers_with = {p: {n.finger for n in spec.nodes for r in spec.joints if r.node == n.id and r.primitive.value == p}
                     for p in ("FLEX", "ABD", "ROT")}
 
@@ -82,7 +83,11 @@ def functional_check(spec: HandSpec, poser) -> list[str]:
         target = "index" if "index" in rest else min((f for f in rest if f != "thumb"),
                                                      key=lambda f: np.linalg.norm(rest[f] - rest["thumb"]))
         opposed = _apply(spec, poser, {"FLEX", "ROT"}, {"thumb"}, OPPOSE)
-        if not np.linalg.norm(opposed["thumb"] - rest[target]) < np.linalg.norm(rest["thumb"] - rest[target]):
-            problems.append(f"thumb +FLEX/+ROT does not bring the thumb tip toward the {target} tip")
+        nearer = np.linalg.norm(opposed["thumb"] - rest[target]) < np.linalg.norm(rest["thumb"] - rest[target])
+        # a thumb lying beside the palm curls toward the palm side (+n) first: that closes it too
+        palmward = (opposed["thumb"] - rest["thumb"]) @ normal > 0.5 * np.linalg.norm(opposed["thumb"] - rest["thumb"])
+        if not (nearer or palmward):
+            problems.append(f"thumb +FLEX/+ROT brings the thumb tip neither toward the {target} tip nor toward "
+                            "the palm side")
     poser.pose(poser.rest())
     return problems
