@@ -74,7 +74,9 @@ def policy_env_config(policy: str, contract=None):
         return EnvConfig() if contract is None else EnvConfig(contract=contract)
     from dgz_cli.rl.checkpoint import read_meta, resolve_checkpoint
 
-    directory = resolve_checkpoint(policy)
+    from dgz_cli.spec.catalog import policy_ref
+
+    directory = resolve_checkpoint(policy_ref(policy))  # a shipped name resolves in a wheel install too
     return read_meta(directory).env if directory is not None else EnvConfig()
 
 

@@ -139,7 +139,9 @@ def _policy_factory(policy: str):
         return (lambda env: ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)), None
     from dgz_cli.rl.checkpoint import LoadedPolicy, resolve_checkpoint
 
-    directory = resolve_checkpoint(policy)
+    from dgz_cli.spec.catalog import policy_ref
+
+    directory = resolve_checkpoint(policy_ref(policy))  # a shipped name resolves in a wheel install too
     if directory is None:
         raise DgzError(f"--policy {policy!r}: no such checkpoint folder or name under policies/",
                        "use 'scripted', a run directory written by `dgz train`, or a shipped policy name")

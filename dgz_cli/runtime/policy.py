@@ -112,7 +112,9 @@ def load_policy(ref: str, spec: HandSpec, *, contract: ControlContract = Control
     else:
         from dgz_cli.rl.checkpoint import resolve_checkpoint
 
-        checkpoint = resolve_checkpoint(ref)
+        from dgz_cli.spec.catalog import policy_ref
+
+        checkpoint = resolve_checkpoint(policy_ref(ref))  # a shipped name resolves in a wheel install too
         if checkpoint is not None:
             from dgz_cli.runtime.trained import TrainedPolicy
 
