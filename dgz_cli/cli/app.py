@@ -177,6 +177,11 @@ def evaluate(
                                    "gain (a checkpoint always runs under its own contract)"),
     roll: str = typer.Option("uniform", "--roll", help="with --policy scripted: start roll, uniform or narrow "
                              "(a checkpoint uses its own)"),
+    video: Optional[Path] = typer.Option(None, "--video", help="also render episodes offscreen into this folder: "
+                                         "MP4 per episode + contact_sheet.png (needs EGL or OSMesa; skipped with a "
+                                         "message where there is none)"),
+    video_episodes: int = typer.Option(2, "--video-episodes", min=1, max=20, help="with --video: episodes per hand, "
+                                       "on the first object"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Success rate per hand and object under the protocol (lift, hold), with both cores."""
@@ -188,7 +193,8 @@ def evaluate(
         raise DgzError("no --hand given", "name one or more hands, e.g. --hand leap --hand inspire")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
-                                      asset_root, out, guidance=guidance, roll=roll))
+                                      asset_root, out, guidance=guidance, roll=roll, video=video,
+                                      video_episodes=video_episodes))
 
 
 @assets_app.command("fetch")

@@ -34,7 +34,7 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
-             guidance: float = 0.0, roll: str = "uniform") -> int:
+             guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2) -> int:
     from dgz_cli.sim.evaluate import failure_class, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
@@ -48,6 +48,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
             check_output(target, option)
     if json_out is not None and csv_out is not None and os.path.realpath(json_out) == os.path.realpath(csv_out):
         raise DgzError(f"--json and --csv name the same file {json_out}", "give them different paths")
+    if video is not None:
+        video = _video_dir(video, console)  # None (with a one-line note) where nothing can render
     make_policy, meta = _policy_factory(policy)
     specs = [load_spec(resolve_spec(h)) for h in hands]
     if zero_shot:
@@ -128,7 +130,36 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
             w.writerow([r["hand"], r["object"], r["trial"], int(r["success"]), why or "", f"{r['max_rise']:.4f}",
                         f"{r['return_']:.3f}"])
         atomic_write(csv_out, buf.getvalue())
+    if video is not None:
+        from dgz_cli.sim.video import rollouts, write_videos
+
+        with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(), console=console,
+                      transient=True) as bar:
+            task = bar.add_task("rendering", total=len(specs) * video_episodes)
+            eps = rollouts([(s, objs[0]) for s in specs], make_policy, video_episodes, cfg, seed, asset_root,
+                           progress=lambda done, total: bar.update(task, completed=done))
+        for path in write_videos(eps, video, cfg.contract.episode.control_hz):
+            console.print(f"[green]wrote[/] {escape(str(path))}", highlight=False, soft_wrap=True)
     return 0
+
+
+def _video_dir(video: Path, console: Console) -> Path | None:
+    """``--video DIR`` made (before anything is evaluated), or None with a one-line note when this machine has
+    no offscreen OpenGL backend (the evaluation still runs)."""
+    from dgz_cli.sim.video import gl_problem, prepare_gl
+
+    if video.exists() and not video.is_dir():
+        raise DgzError(f"--video {video}: exists and is not a folder", "name a folder (it is created if missing)")
+    try:
+        video.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DgzError(f"--video {video}: cannot create the folder ({exc.strerror})", "name a writable folder") from None
+    prepare_gl()
+    problem = gl_problem()
+    if problem is not None:
+        console.print(f"[yellow]skipping --video:[/] {escape(problem)}", highlight=False, soft_wrap=True)
+        return None
+    return video
 
 
 def _policy_factory(policy: str):
