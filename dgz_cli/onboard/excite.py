@@ -72,6 +72,7 @@ class Exciter:
             for j in c.joints:
                 self.finger_of[j] = i
         self.classes = frame.fingers
+        self._thumb_axis: dict[int, tuple[str, np.ndarray] | None] = {}
 
     def _unit_point(self, joint: str) -> tuple[np.ndarray, str | None]:
         i = self.finger_of.get(joint)
@@ -142,23 +143,35 @@ class Exciter:
         return self.frame.normal
 
     def _thumb_curl(self, joint: str) -> np.ndarray | None:
-        """The thumb's own curl at the current pose: the direction its last revolute joint moves the thumb tip
-        about that joint's axis taken at ``joint``'s anchor, oriented to close — toward the opposed fingertip, or
-        toward the palm side (+n) when that gap barely changes. None for a thumb without a revolute joint."""
-        chain = self.st.chains[self.finger_of[joint]]
-        last = next((j for j in reversed(chain.joints) if self.kin.joints[j].type != "prismatic"), None)
-        if last is None:
+        """The thumb's own curl at ``joint`` (current pose): the direction the thumb tip moves about the thumb's
+        curl axis taken at ``joint``'s anchor. The curl axis is the axis of the thumb's last revolute joint,
+        oriented once per thumb at the rest pose so that curling moves the tip toward the palm side (+n), or,
+        when that barely changes, toward the opposed fingertip. None for a thumb without a revolute joint."""
+        i = self.finger_of[joint]
+        if i not in self._thumb_axis:
+            chain = self.st.chains[i]
+            last = next((j for j in reversed(chain.joints) if self.kin.joints[j].type != "prismatic"), None)
+            axis = None
+            if last is not None:
+                self.poser.pose(self.poser.rest())
+                own = tip_positions(self.poser, self.st)[i]
+                axis = self.poser.joint_axis(last)
+                curl = _unit(np.cross(axis, own - self.poser.joint_anchor(last)))
+                d = curl @ self.frame.normal
+                if abs(d) < THUMB_WEAK:
+                    d = curl @ _unit(self._opposed_target() - own)
+                axis = axis if d >= 0 else -axis
+                # axes are world vectors at the rest pose: keep the axis in the last joint's frame
+                axis = (last, self.poser.link_rot(self.kin.joints[last].child).T @ axis)
+            self._thumb_axis[i] = axis
+        ax = self._thumb_axis[i]
+        if ax is None:
             return None
-        tips = tip_positions(self.poser, self.st)
-        own = tips[self.finger_of[joint]]
-        curl = _unit(np.cross(self.poser.joint_axis(last), own - self.poser.joint_anchor(joint)))
-        if np.linalg.norm(curl) < 1e-9:
-            return None
-        toward = _unit(self._opposed_target() - own)
-        d = curl @ toward
-        if abs(d) < THUMB_WEAK:
-            d = curl @ self.frame.normal
-        return curl if d >= 0 else -curl
+        last, local = ax
+        axis = self.poser.link_rot(self.kin.joints[last].child) @ local
+        own = tip_positions(self.poser, self.st)[i]
+        curl = _unit(np.cross(axis, own - self.poser.joint_anchor(joint)))
+        return curl if np.linalg.norm(curl) > 1e-9 else None
 
     def _sign(self, prim: str, joint: str, v: np.ndarray, w: np.ndarray, n_perp: np.ndarray,
               ref: np.ndarray | None = None) -> tuple[int, float]:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dgz_cli.onboard.compile import Poser
-from dgz_cli.onboard.structure import Structure
+from dgz_cli.onboard.structure import Structure, rigid_group
 from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.errors import OnboardError
 from dgz_cli.spec.kinematics import rest_pose
@@ -87,18 +87,36 @@ def _curls(kin: Kinematics, poser: Poser, st: Structure, tips: np.ndarray) -> np
     return np.array(curls)
 
 
+class ThumbAmbiguous(Exception):
+    def __init__(self, first: int, second: int, margin: float) -> None:
+        self.first, self.second, self.margin = first, second, margin
+
+
+def _distal_centre(kin: Kinematics, poser: Poser, chain, tip: np.ndarray) -> np.ndarray:
+    """Centre of the collision geometry of a digit's last link (its fingertip when it has none): where the digit
+    points, without the sideways offset a box corner chosen as fingertip point would add."""
+    pts = poser.geom_points(rigid_group(kin, kin.joints[chain.joints[-1]].child))
+    return pts.mean(0) if len(pts) else tip
+
+
 def find_thumb(curls: np.ndarray, dirs: np.ndarray) -> tuple[int | None, float]:
     """The digit that agrees least with the others in how it curls and where it points (mean of the two
-    cosines over the other digits), if it stands out: (index, margin over the runner-up) or (None, 0)."""
+    cosines over the other digits), if it stands out and the other digits all curl to one side (no two of
+    them close toward each other, as on a claw): (index, margin over the runner-up) or (None, margin)."""
     nf = len(curls)
     if nf < 3:
         return None, 0.0
-    cos = 0.5 * (curls @ curls.T + dirs @ dirs.T)
+    cos = np.minimum(curls @ curls.T, dirs @ dirs.T)
     agree = (cos.sum(1) - 1.0) / (nf - 1)
     order = np.argsort(agree, kind="stable")
     margin = float(agree[order[1]] - agree[order[0]])
-    if agree[order[0]] < THUMB_AGREE and margin > THUMB_MARGIN:
-        return int(order[0]), margin
+    rest = [int(i) for i in order[1:]]
+    mutual = min(float(curls[i] @ curls[j]) for i in rest for j in rest if i < j)
+    if agree[order[0]] < THUMB_AGREE and mutual > 0:  # the others close to one side
+        if margin > THUMB_MARGIN:
+            return int(order[0]), margin
+        if margin > THUMB_MARGIN / 2:
+            raise ThumbAmbiguous(int(order[0]), int(order[1]), margin)
     return None, margin
 
 
@@ -107,9 +125,16 @@ def estimate(kin: Kinematics, poser: Poser, st: Structure) -> PalmFrame:
     tips = tip_positions(poser, st)
     bases = np.array([poser.joint_anchor(c.joints[0]) for c in st.chains])
     curls = _curls(kin, poser, st, tips)
-    dirs = np.array([_unit(t - b) for t, b in zip(tips, bases)])
+    dirs = np.array([_unit(_distal_centre(kin, poser, c, t) - b) for c, t, b in zip(st.chains, tips, bases)])
     nf = len(st.chains)
-    thumb, margin = find_thumb(curls, dirs)
+    try:
+        thumb, margin = find_thumb(curls, dirs)
+    except ThumbAmbiguous as amb:
+        a, b = (st.chains[amb.first].joints[0], st.chains[amb.second].joints[0])
+        raise OnboardError(f"{kin.source}: cannot tell which digit is the thumb: the chains starting at joints '{a}' "
+                           f"and '{b}' differ from the other digits almost equally (margin {amb.margin:.3f})",
+                           "dgz takes as thumb the digit that curls and points unlike the others at the rest pose "
+                           "(0 in every range); check that pose and the joint ranges") from None
     others = [i for i in range(nf) if i != thumb]
 
     pts = poser.geom_points(list(st.palm_group))

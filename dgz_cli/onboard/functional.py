@@ -2,11 +2,15 @@
 
 A primitive command α is pushed through M_h (Δq_j = s_j · α[n_j, p_j], clipped to the limits):
 1. from the rest pose, +FLEX (0.5 rad) on every node moves every fingertip closer to the palm centre;
+   (a thumb lying beside the palm may instead move mostly toward the palm side, +n);
 2. from a half-closed pose (+FLEX 0.5 rad, where finger-root twists become spreads), +ABD
    (0.15 rad) on a non-middle, non-thumb finger moves its tip away from the middle finger's
    axis, and +ABD on all nodes spreads fingertips on opposite sides of the middle finger apart;
+   "away" is judged by the sides the fingertips lie on in the open hand: long claw digits may
+   have crossed each other's line at the half-closed pose;
 3. from the rest pose, +FLEX and +ROT (0.3 rad) on the thumb's nodes bring the thumb tip toward
-   the index tip (or the nearest other fingertip when there is no index).
+   the index tip (or the nearest other fingertip when there is no index), or mostly toward the
+   palm side (+n) for a thumb beside the palm.
 Distances are measured in the palm link's frame, so wrist joints do not fool the check.
 """
 
@@ -43,6 +47,11 @@ def _apply(spec: HandSpec, poser, prims: set[str], fingers: set[str] | None, ste
     return _tips(spec, poser)
 
 
+def _palmward(move: np.ndarray, normal: np.ndarray) -> bool:
+    """The motion goes mostly toward the palm side (+n)."""
+    return bool(move @ normal > 0.5 * np.linalg.norm(move) > 0)
+
+
 def functional_check(spec: HandSpec, poser) -> list[str]:
     """Return one message per violated expectation (empty list = pass)."""
     problems: list[str] = []
@@ -56,25 +65,46 @@ def functional_check(spec: HandSpec, poser) -> list[str]:
 
     closed = _apply(spec, poser, {"FLEX"}, None, CLOSE)
     for finger, tip in rest.items():
-        if finger in fingers_with["FLEX"] and not np.linalg.norm(closed[finger] - center) < np.linalg.norm(tip - center):
-            problems.append(f"+FLEX does not move the {finger} fingertip closer to the palm centre")
+        if finger not in fingers_with["FLEX"] or np.linalg.norm(closed[finger] - center) < np.linalg.norm(tip - center):
+            continue
+        if finger == "thumb" and _palmward(closed[finger] - tip, normal):
+            continue  # a thumb beside the palm closes toward the palm side first
+        problems.append(f"+FLEX does not move the {finger} fingertip closer to the palm centre")
 
     others = [f for f in rest if f not in ("middle", "thumb") and f in fingers_with["ABD"]]
+    open_tips = rest
     half = _command(spec, poser.rest(), {"FLEX"}, None, CLOSE)
     poser.pose(half)
     rest = _tips(spec, poser)
+
+    def side(a: str, b: str) -> float:
+        """Which side of b along l fingertip a lies on in the open hand (rest pose). Long digits of a claw
+        can cross each other's line on the way to the half-closed pose: the open hand's side still says which
+        way is 'away'."""
+        s = (open_tips[a] - open_tips[b]) @ lateral
+        return float(np.sign(s if abs(s) > 1e-6 else (rest[a] - rest[b]) @ lateral))
+
+    def crossed(a: str, b: str) -> bool:
+        return float(np.sign((rest[a] - rest[b]) @ lateral)) != side(a, b)
+
     if "middle" in rest:
         for finger in others:
             spread = _apply(spec, poser, {"ABD"}, {finger}, SPREAD, half)
-            before = abs((rest[finger] - rest["middle"]) @ lateral)
-            after = abs((spread[finger] - rest["middle"]) @ lateral)
-            if not after > before:
+            if crossed(finger, "middle"):
+                away = ((spread[finger] - rest[finger]) @ lateral) * side(finger, "middle") > 0
+            else:
+                away = abs((spread[finger] - rest["middle"]) @ lateral) > abs((rest[finger] - rest["middle"]) @ lateral)
+            if not away:
                 problems.append(f"+ABD does not move the {finger} fingertip away from the middle finger")
     spread = _apply(spec, poser, {"ABD"}, None, SPREAD, half)
     for a, b in itertools.combinations(others, 2):
-        if "middle" in rest and ((rest[a] - rest["middle"]) @ lateral) * ((rest[b] - rest["middle"]) @ lateral) > 0:
+        if "middle" in rest and side(a, "middle") * side(b, "middle") > 0:
             continue  # same side of the middle finger: both move the same way, their gap may shrink
-        if not np.linalg.norm(spread[a] - spread[b]) > np.linalg.norm(rest[a] - rest[b]):
+        if crossed(a, b):
+            apart = ((spread[a] - spread[b]) - (rest[a] - rest[b])) @ lateral * side(a, b) > 0
+        else:
+            apart = np.linalg.norm(spread[a] - spread[b]) > np.linalg.norm(rest[a] - rest[b])
+        if not apart:
             problems.append(f"+ABD does not spread the {a} and {b} fingertips apart")
 
     poser.pose(poser.rest())
@@ -85,8 +115,7 @@ def functional_check(spec: HandSpec, poser) -> list[str]:
         opposed = _apply(spec, poser, {"FLEX", "ROT"}, {"thumb"}, OPPOSE)
         nearer = np.linalg.norm(opposed["thumb"] - rest[target]) < np.linalg.norm(rest["thumb"] - rest[target])
         # a thumb lying beside the palm curls toward the palm side (+n) first: that closes it too
-        palmward = (opposed["thumb"] - rest["thumb"]) @ normal > 0.5 * np.linalg.norm(opposed["thumb"] - rest["thumb"])
-        if not (nearer or palmward):
+        if not (nearer or _palmward(opposed["thumb"] - rest["thumb"], normal)):
             problems.append(f"thumb +FLEX/+ROT brings the thumb tip neither toward the {target} tip nor toward "
                             "the palm side")
     poser.pose(poser.rest())

@@ -266,7 +266,7 @@ def _hand(b: _Builder, rng) -> tuple[str, Optional[str], list[dict], list[str], 
         _finger_chain(b, rng, f"f{i + 1}", base, F, N, lengths, signs, abd, n_flex >= 2 and rng.random() < 0.3,
                       0.008 * scale, labels, cls)
     if has_thumb:
-        theta = math.radians(float(rng.uniform(25, 65)))
+        theta = math.radians(float(rng.uniform(25, 85)))
         tilt = math.radians(float(rng.uniform(0, 15)))
         d = _unit(math.cos(theta) * F + math.sin(theta) * ts * L + math.sin(tilt) * N)
         beta = math.radians(float(rng.uniform(0, 45)))  # diagonal curl (MANO-like when large)
@@ -283,9 +283,9 @@ def _hand(b: _Builder, rng) -> tuple[str, Optional[str], list[dict], list[str], 
             swing = np.cross(u, d)  # tip motion of +rotation about +u
             opens = -1 if swing @ fperp > 0 else 1  # the thumb-to-fingers angle grows when swing leaves F
             abd = (b_sign * u, b_sign * opens)
-        lengths = [float(x * rng.uniform(0.6, 1.6) * scale) for x in (0.04, 0.03)[:n_flex]]
+        lengths = [float(x * rng.uniform(0.6, 1.8) * scale) for x in (0.04, 0.03)[:n_flex]]
         signs = [int(rng.choice([1, -1])) for _ in range(n_flex)]
-        base = np.array([plen * float(rng.uniform(0.2, 0.4)), ts * width / 2, 0.0])
+        base = np.array([plen * float(rng.uniform(0.2, 0.7)), ts * width / 2, 0.0])
         if has_rot:
             r_sign = int(rng.choice([1, -1]))
             # +rotation about +d turns the pad normal u by d × u; opposition = the pad turns toward the fingers
@@ -325,15 +325,16 @@ def _radial(b: _Builder, rng, kind: str) -> tuple[str, Optional[str], list[dict]
                    visuals=('<origin xyz="0 0 0" rpy="0 0 0"/><geometry><mesh filename="meshes/jaw.glb"/></geometry>',))
             s = int(rng.choice([1, -1]))
             axis = s * (-e)  # +q along axis closes when s = +1
+            travel = round(min(0.04, 0.8 * radius), 4)  # the jaws stop before they meet
             if i == 0:
                 src_sign = s
-                limits = (0.0, 0.04) if s > 0 else (-0.04, 0.0)
+                limits = (0.0, travel) if s > 0 else (-travel, 0.0)
                 b.joint(f"{b_name}_j1", "prismatic", "palm", child, base, axis, limits)
                 labels.append(dict(joint=f"{b_name}_j1", finger=b_name, finger_class=None, node=0,
                                    node_type="proximal", primitive="FLEX", sign=s))
             else:
                 mult = float(s * src_sign)  # closes together with the source
-                b.joint(f"{b_name}_j1", "prismatic", "palm", child, base, axis, (-0.04, 0.04), (f"f1_j1", mult))
+                b.joint(f"{b_name}_j1", "prismatic", "palm", child, base, axis, (-travel, travel), ("f1_j1", mult))
                 mimic.append(f"{b_name}_j1")
             continue
         n_flex = int(rng.integers(1, 4))
