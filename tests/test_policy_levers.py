@@ -62,6 +62,32 @@ def test_graspxl_terms_by_hand():
     assert t["success"][0] == 0 and t["push"][0] == -1
     w8 = GraspXLReward()
     assert graspxl_total(t, w8)[0] == pytest.approx(0.3 * t["dis"][0] + 0.2 + 0.5 * 0.9 - 1.5 * 0.25 + 3 * 0.5 - 10)
+    assert t["residual"][0] == 0  # no residual given
+    t2 = graspxl_terms(d, np.array([[True, False, True]]), np.array([[0.5, 3.0, 9.0]]), w,
+                       np.array([[0.0, 0.3, 0.4]]), np.array([0.25]), np.array([True]), np.array([False]),
+                       np.array([True]), 0.5, residual_sq=np.array([0.16]))
+    assert graspxl_total(t2, GraspXLReward(residual=2.0))[0] == pytest.approx(graspxl_total(t, w8)[0] - 0.32)
+
+
+def test_residual_term_counts_only_active_dims():
+    """r_residual = −mean a² over the wrist and the mask-enabled primitives; an inactive primitive's action
+    (and the prior's own action) costs nothing."""
+    cfg = EnvConfig(contract=ControlContract(observation=MARKOV, prior=ClosingPrior(enabled=True, close_step=0)),
+                    reward_variant="graspxl", graspxl=GraspXLReward(residual=1.0))
+    env = _env(cfg)
+    env.reset()
+    n_active = int(env._active_dims.sum())
+    assert n_active == 6 + int(((env.mask > 0) & env.node_valid[..., None]).sum())
+    inactive = np.nonzero(env._active_dims[0] == 0)[0]
+    assert len(inactive)  # dgz_tri has inactive primitives
+    a = np.zeros((1, env.action_dim))
+    a[0, inactive] = 1.0
+    _, _, _, _, info = env.step(a)
+    assert info["reward_terms"]["residual"][0] == 0  # the prior closes (step ≥ 0) and inactive dims are free
+    a[0, :6] = 0.5
+    _, _, _, _, info = env.step(a)
+    assert info["reward_terms"]["residual"][0] == pytest.approx(-6 * 0.25 / n_active)
+    env.close()
 
 
 def _env(cfg: EnvConfig, obj: str = "box") -> GraspEnv:
@@ -186,6 +212,14 @@ def test_closing_prior_by_hand_and_in_the_env():
     assert c.prior_action(nodes, glob, mask, np.ones((2, 3), bool))[1, 9] == 1
     with pytest.raises(ValueError, match="phase"):
         ControlContract(prior=ClosingPrior(enabled=True))  # the paper's layout has no phase block
+    # close_guide: slot 1 (20 cm from the surface, step 10) closes once the guidance error is below 8 cm
+    cg = ControlContract(observation=MARKOV, prior=ClosingPrior(enabled=True, close_guide=0.08))
+    glob[1, lay.global_col("phase")] = 10 / 190
+    glob[1, lay.global_col("guide")] = np.array([0.0, 0.06, 0.09]) / lay.target_scale  # ‖·‖ = 0.108 m
+    assert not cg.prior_action(nodes, glob, mask, np.ones((2, 3), bool))[1].any()
+    glob[1, lay.global_col("guide")] = np.array([0.0, 0.03, 0.07]) / lay.target_scale  # 0.076 m
+    assert cg.prior_action(nodes, glob, mask, np.ones((2, 3), bool))[1, 9] == 1
+    assert not c.prior_action(nodes, glob, mask, np.ones((2, 3), bool))[1].any()  # off without close_guide
     # in the env: zero policy actions + the prior close the hand from step 50 on
     env = _env(EnvConfig(contract=c))
     env.reset()

@@ -73,5 +73,10 @@ class TrainConfig(BaseModel):
     log_std_per_type: bool = Field(False, description="exploration log-std per (node type, primitive)")
     closing_prior: bool = Field(False, description="the policy is a residual on the contract's Markov closing prior "
                                 "(needs observation: markov)")
+    prior_close_guide: float | None = Field(None, gt=0, le=0.3, description="m: the closing prior also closes once "
+                                            "the guidance error is below this (contract prior.close_guide; None = off)")
+    prior_close_step: int = Field(50, ge=0, description="control step from which the closing prior closes regardless")
+    residual_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −mean a² over the "
+                                   "policy's active action dims (its residual on the prior; 0 = off)")
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     ppo: PPOConfig = PPOConfig()

@@ -60,6 +60,7 @@ class GraspEnv:
         self.targets = np.zeros((self.B, self.L))
         self._dq = np.zeros((self.B, self.L))  # the last step's applied joint change and primitive actions (rewards)
         self._alpha = np.zeros((self.B, self.N, self.cfg.contract.action.n_prim))
+        self._residual_sq = np.zeros(self.B)  # the last step's mean squared policy action (r_residual)
         self.wrist_target = np.zeros((self.B, 6))
         self.prev_palm = np.zeros((self.B, 3))
         self.prev_rot = np.tile(np.eye(3), (self.B, 1, 1))
@@ -124,6 +125,10 @@ class GraspEnv:
             self.proj[b, :3 * n, :l] = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)
             self.node_point[b, :n] = s.idx.node_point
             self.cloud[b] = s.idx.cloud
+        wrist_dim = self.cfg.contract.action.wrist_dim
+        # (B, action_dim) 1 on the wrist and on the mask-enabled primitives of real nodes (r_residual's dims)
+        self._active_dims = np.concatenate([np.ones((B, wrist_dim)), (
+            (self.mask > 0) & self.node_valid[..., None]).reshape(B, -1)], axis=1).astype(np.float64)
         self.cloud_pre = observe.cloud_terms(self.cloud)  # constants of observe.nearest_surface
         self.cloud_sum = self.cloud.sum(axis=1)  # (B, 3): the object centre is obj_pos + R · cloud_sum / P
         self.static_nodes = observe.static_features(self.finger, self.node_type, self.node_valid)
@@ -203,6 +208,7 @@ class GraspEnv:
         cfg, B = self.cfg, self.B
         act, ep = cfg.contract.action, cfg.contract.episode
         a = np.nan_to_num(np.asarray(action, dtype=np.float64))
+        self._residual_sq = (np.clip(a, -1.0, 1.0) ** 2 * self._active_dims).sum(-1) / self._active_dims.sum(-1)
         if cfg.contract.prior.enabled:  # the policy's action is a residual on the contract's Markov prior
             a = a + cfg.contract.prior_action(self._nodes, self._global, self.mask, self.node_valid)
         a = np.clip(a, -1.0, 1.0)
@@ -258,7 +264,8 @@ class GraspEnv:
             pushed = (self.t <= ep.grasp_steps) & (np.linalg.norm(obj_pos - self.p0, axis=-1) > cfg.graspxl.push_limit)
             palm_v = self._palm_velocity * (self.t > ep.grasp_steps)[:, None]
             terms = graspxl_terms(d_world, contact, force / cfg.contract.observation.force_scale, self.node_weight,
-                                  obj_vel - palm_v, rise, self.t > ep.grasp_steps, success, pushed, ep.lift_height)
+                                  obj_vel - palm_v, rise, self.t > ep.grasp_steps, success, pushed, ep.lift_height,
+                                  residual_sq=self._residual_sq)
             reward = graspxl_total(terms, cfg.graspxl)
         else:
             terms = reward_terms(d_world, contact, force / cfg.contract.observation.force_scale, dq, alpha, self.mask,

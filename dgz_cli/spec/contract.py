@@ -148,6 +148,10 @@ class ClosingPrior(_Frozen):
     enabled: bool = False
     close_gap: float = Field(0.03, gt=0, le=0.3, description="m, palm centre to the nearest surface point")
     close_step: int = Field(50, ge=0, description="control step from which the prior closes regardless")
+    close_guide: float | None = Field(None, gt=0, le=0.3, description="m: also close once the wrist guidance error "
+                                      "(target − grasp point, the 'guide' block) is below this — the Markov form of the "
+                                      "scripted grasp's stall test: at guidance gain g the approach slows below 2 mm "
+                                      "per step at 0.002 / g m; None = off")
 
 
 class ActionLayout(_Frozen):
@@ -229,6 +233,8 @@ class ControlContract(_Frozen):
     def _prior_needs_phase(self) -> "ControlContract":
         if self.prior.enabled and not self.observation.has("phase"):
             raise ValueError("the closing prior reads the 'phase' block: use an observation layout that has it")
+        if self.prior.enabled and self.prior.close_guide is not None and not self.observation.has("guide"):
+            raise ValueError("prior.close_guide reads the 'guide' block: use an observation layout that has it")
         return self
 
     def guidance_action(self, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -257,6 +263,9 @@ class ControlContract(_Frozen):
         gap = np.where(is_wrist, np.linalg.norm(d, axis=-1), np.inf).min(-1)  # (B,) inf: no wrist node
         step = np.rint(glob[:, lay.global_col("phase")].astype(np.float64)[:, 0] * self.episode.episode_steps)
         close = (gap < self.prior.close_gap) | (step >= self.prior.close_step)
+        if self.prior.close_guide is not None:
+            guide = glob[:, lay.global_col("guide")].astype(np.float64) * lay.target_scale
+            close |= np.linalg.norm(guide, axis=-1) < self.prior.close_guide
         flex = (mask[..., 0] > 0) & node_valid & ~is_wrist & close[:, None]
         out[:, act.wrist_dim::act.n_prim] = flex
         return out

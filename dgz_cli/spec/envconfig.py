@@ -32,7 +32,8 @@ class GraspXLReward(_Frozen):
     Σ w_i c_i / Σ w_i, r_force = Σ w_i min(f_i / force_scale, 1) / Σ w_i (positive, capped), r_objvel =
     −‖v_obj − v_palm‖² (the object's velocity relative to the palm; before the lift the palm's is dropped),
     r_lift = clip(rise / lift_height, 0, 1) after the grasp phase, r_success = 1 at the last step of a
-    successful episode; pushing the object more than ``push_limit`` during the grasp phase ends the episode
+    successful episode; r_residual = −mean a² over the policy's active action dims (weight ``residual``,
+    0 by default); pushing the object more than ``push_limit`` during the grasp phase ends the episode
     (a true terminal state) with ``push_penalty``."""
 
     dis: float = Field(0.3, ge=0, le=1e3)
@@ -44,6 +45,9 @@ class GraspXLReward(_Frozen):
     tip_weight: float = Field(4.0, ge=1, le=100)
     push_limit: float = Field(0.3, gt=0, le=10, description="m of object displacement during the grasp phase")
     push_penalty: float = Field(10.0, ge=0, le=1e4)
+    residual: float = Field(0.0, ge=0, le=1e3, description="weight of r_residual = −mean a² over the policy's active "
+                            "action dims (wrist + mask-enabled primitives), its own action before the prior; "
+                            "not GraspXL's (issue 11: a residual that cannot undo the prior cheaply); 0 = off")
 
 
 class EnvConfig(_Frozen):
