@@ -22,6 +22,7 @@ import numpy as np
 WIDTH, HEIGHT = 320, 240  # multiples of 16 (H.264 macro blocks)
 STRIDE = 2  # render every 2nd control step: 10 frames/s at 20 Hz, played in real time
 SHEET_COLUMNS = 6
+OBJECT_RGBA = (0.85, 0.55, 0.2, 1.0)  # display only (geom_rgba plays no part in the physics)
 
 
 def prepare_gl() -> str:
@@ -88,6 +89,8 @@ def rollouts(pairs: list, make_policy: Callable, episodes: int, cfg, seed: int =
         policy.reset(None)
         option = mujoco.MjvOption()
         option.geomgroup[:] = 1  # collision geometry is all the env compiles (visuals are discarded)
+        for s in env.slots:  # the object in orange, so it stands out from the grey hand and table
+            s.model.geom_rgba[s.model.geom_bodyid == s.idx.object_body] = OBJECT_RGBA
         renderers = [mujoco.Renderer(s.model, HEIGHT, WIDTH) for s in env.slots]
         for r in renderers:  # software GL (no GPU): shadows and reflections cost ~10x the frame time
             for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
