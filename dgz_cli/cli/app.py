@@ -22,6 +22,9 @@ app = typer.Typer(no_args_is_help=True, pretty_exceptions_enable=False, add_comp
                   help="dgz — DexGrasp-Zero: onboard any dexterous hand from its URDF and grasp with one policy.")
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that print JSON (throughput, latency, peak memory).")
 app.add_typer(bench_app, name="bench")
+from dgz_cli.cli.hands_cmd import hands_app  # noqa: E402  (typer sub-app; heavy modules load inside its commands)
+
+app.add_typer(hands_app, name="hands")
 assets_app = typer.Typer(no_args_is_help=True, help="Hand and object models from their pinned upstream repositories.")
 app.add_typer(assets_app, name="assets")
 out = Console(emoji=False)  # names from input files: no :emoji: codes (markup is escaped where printed)
@@ -147,6 +150,51 @@ def train(
                                    asset_root, out))
 
 
+def _distill_default(field: str) -> str:
+    """A DistillConfig field's description and default, for --help (the config model is the one source)."""
+    from dgz_cli.rl.distill_config import DistillConfig
+
+    f = DistillConfig.model_fields[field]
+    default = ",".join(f.default) if isinstance(f.default, tuple) else f.default
+    return f"{f.description or field} (default: {default})"
+
+
+@app.command()
+def distill(
+    out_dir: Path = typer.Option(..., "--out", help="run directory (checkpoints, logs, curve)"),
+    teacher: Optional[str] = typer.Option(None, "--teacher", help="the privileged teacher: a `dgz train` checkpoint "
+                                          "folder or a name under policies/ (e.g. dgz-cpu-warmstart)"),
+    hands: Optional[str] = typer.Option(None, "--hands", help="comma-separated " + _distill_default("hands")),
+    objects: Optional[str] = typer.Option(None, "--objects", help=_distill_default("objects")),
+    repeat: Optional[int] = typer.Option(None, "--repeat", help=_distill_default("repeat")),
+    iterations: Optional[int] = typer.Option(None, "--iterations", help=_distill_default("iterations")),
+    steps: Optional[int] = typer.Option(None, "--steps", help=_distill_default("steps_per_env")),
+    epochs: Optional[int] = typer.Option(None, "--epochs", help=_distill_default("epochs")),
+    learning_rate: Optional[float] = typer.Option(None, "--learning-rate", help=_distill_default("learning_rate")),
+    finetune_iterations: Optional[int] = typer.Option(None, "--finetune-iterations",
+                                                      help=_distill_default("finetune_iterations")),
+    joint_noise: Optional[float] = typer.Option(None, "--joint-noise", help="rad: std of the noise on the student's "
+                                                "joint readings (default: 0.01)"),
+    held_cloud: Optional[bool] = typer.Option(None, "--held-cloud/--live-cloud", help="the student sees the object "
+                                              "cloud of the first frame, held, its centroid the target (default), or "
+                                              "the simulator's live cloud"),
+    checkpoint_every: Optional[int] = typer.Option(None, "--checkpoint-every", help=_distill_default("checkpoint_every")),
+    seed: Optional[int] = typer.Option(None, "--seed", help=_distill_default("seed")),
+    resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint "
+                                "(its recorded config; --iterations/--finetune-iterations may extend it)"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+) -> None:
+    """Distil a privileged teacher into a student that needs no contact or force input (DAgger, then optional PPO)."""
+    from dgz_cli.cli import distill_cmd
+
+    given = dict(teacher=teacher, hands=None if hands is None else tuple(h for h in hands.split(",") if h),
+                 objects=objects, repeat=repeat, iterations=iterations, steps_per_env=steps, epochs=epochs,
+                 learning_rate=learning_rate, finetune_iterations=finetune_iterations, joint_noise=joint_noise,
+                 held_cloud=held_cloud, checkpoint_every=checkpoint_every, seed=seed)
+    raise typer.Exit(distill_cmd.run({k: v for k, v in given.items() if v is not None}, out_dir, resume, asset_root,
+                                     out))
+
+
 @app.command()
 def scene(
     hand: str = typer.Option(..., "--hand", help="shipped hand name or spec file"),
@@ -182,6 +230,9 @@ def evaluate(
                                          "message where there is none)"),
     video_episodes: int = typer.Option(2, "--video-episodes", min=1, max=20, help="with --video: episodes per hand, "
                                        "on the first object"),
+    perturb: bool = typer.Option(True, "--perturb/--no-perturb", help="a distilled student observes under the "
+                                 "hardware perturbations recorded in its checkpoint (default), or the simulator's "
+                                 "observation; no effect on other policies"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Success rate per hand and object under the protocol (lift, hold), with both cores."""
@@ -194,7 +245,7 @@ def evaluate(
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, roll=roll, video=video,
-                                      video_episodes=video_episodes))
+                                      video_episodes=video_episodes, perturb=perturb))
 
 
 @assets_app.command("fetch")
@@ -215,6 +266,30 @@ def assets_fetch(
     from dgz_cli.cli import assets_cmd
 
     raise typer.Exit(assets_cmd.fetch(hands, objects, dest, mirror, force, registry, out, progress=not quiet))
+
+
+@bench_app.command("train")
+def bench_train(
+    config: Optional[Path] = typer.Option(None, "--config", help="YAML run config, as for `dgz train --config`"),
+    hands: str = typer.Option("allegro,shadow,schunk_svh,ability", "--hands", help="comma-separated training hands"),
+    objects: str = typer.Option("004_sugar_box,013_apple,025_mug,061_foam_brick", "--objects",
+                                help="ycb45, primitives, or comma-separated object names"),
+    repeat: int = typer.Option(3, "--repeat", min=1, help="N_env = hands × objects × repeat"),
+    steps: int = typer.Option(130, "--steps", min=1, help="transitions per env per iteration"),
+    iterations: int = typer.Option(2, "--iterations", min=1, help="PPO iterations measured"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
+    as_json: bool = typer.Option(False, "--json", help="print only the JSON"),
+) -> None:
+    """End-to-end training transitions/s, its split (physics, env, forward, update), peak RSS, MuJoCo profile."""
+    from dgz_cli.cli import train_cmd
+
+    given = dict(hands=tuple(h for h in hands.split(",") if h), objects=objects, repeat=repeat, steps_per_env=steps)
+    result = train_cmd.bench(given, config, iterations, asset_root)
+    if not as_json:
+        f = result["split_fraction"]
+        out.print(f"{result['transitions_per_s']} transitions/s (physics {f['physics_s']:.0%}, env {f['env_other_s']:.0%}, "
+                  f"forward {f['policy_forward_s']:.0%}, update {f['ppo_update_s']:.0%}), peak RSS {result['peak_rss_mb']} MB")
+    sys.stdout.write(json.dumps(result, indent=2) + "\n")
 
 
 @bench_app.command("sim")

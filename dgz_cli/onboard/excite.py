@@ -173,6 +173,17 @@ class Exciter:
         curl = _unit(np.cross(axis, own - self.poser.joint_anchor(joint)))
         return curl if np.linalg.norm(curl) > 1e-9 else None
 
+    def _opening(self, thumb: int, v: np.ndarray) -> float:
+        """How much tip velocity ``v`` opens the angle between the thumb (first joint → tip) and the fingers'
+        direction f: > 0 opens, in units of |v|."""
+        tips = tip_positions(self.poser, self.st)
+        t = _unit(tips[thumb] - self.poser.joint_anchor(self.st.chains[thumb].joints[0]))
+        f = self.frame.finger_axis
+        perp = f - (f @ t) * t
+        if np.linalg.norm(perp) < 1e-6:
+            return 0.0
+        return float(-(v @ _unit(perp)))
+
     def _sign(self, prim: str, joint: str, v: np.ndarray, w: np.ndarray, n_perp: np.ndarray,
               ref: np.ndarray | None = None) -> tuple[int, float]:
         """(sign, strength ∈ [0,1]) of the joint's + direction for primitive ``prim``."""
@@ -188,8 +199,14 @@ class Exciter:
             return (1 if d >= 0 else -1), abs(d) / max(np.linalg.norm(v), 1e-9)
         if prim == "ABD":
             if cls == "thumb":
-                d = v @ _unit(own - self._opposed_target())
-                if abs(d) < 0.3 * np.linalg.norm(v):  # no clear effect on the gap: palmar abduction is +n
+                # a swing within the palm plane opens the angle between thumb and index finger; palmar abduction
+                # (out of the palm plane) is +n; the gap to the index tip decides when the angle barely changes
+                speed = np.linalg.norm(v)
+                palmar = abs(v @ fr.normal) >= 0.5 * speed
+                d = v @ fr.normal if palmar else self._opening(i, v)
+                if abs(d) < THUMB_WEAK * speed:
+                    d = v @ _unit(own - self._opposed_target())
+                if abs(d) < THUMB_WEAK * speed:
                     d = v @ fr.normal
             else:
                 if cls in ("middle", "wrist"):
