@@ -21,6 +21,7 @@ import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import BUILTIN, REPO, SPECS, asset_root, needs_assets
@@ -431,3 +432,27 @@ def test_force_replaces_a_unit_in_one_rename(server, tmp_path):
 def test_unknown_hand_is_one_line(tmp_path):
     proc = run_dgz("assets", "fetch", "--hands", "nope", "--dest", str(tmp_path / "a"))
     one_line_error(proc, "--hands 'nope'", "leap")
+
+
+def test_glb_visual_is_converted_and_its_source_checked(server, tmp_path):
+    """Inspire's visuals: the .glb member is pinned by sha256 and converted to .obj (geometry kept)."""
+    import trimesh
+
+    httpd, url, handler = server
+    glb = trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(file_type="glb")
+    reg_path, members = tri_registry(tmp_path)
+    raw = json.loads(reg_path.read_text())
+    raw["units"]["hands/tri"]["files"]["urdf/meshes/visual/box.obj"] = dict(
+        source="tri", member="robots/box.glb", source_sha256=sha(glb), convert="glb2obj")
+    reg_path.write_text(json.dumps(raw))
+    reg = load_registry(reg_path)
+    handler.files[reg.sources["tri"].archive] = make_tar({**members, f"tri-{COMMIT}/robots/box.glb": glb})
+    dest = tmp_path / "assets"
+    fetch_mod.fetch(["hands/tri"], dest, mirror=url, registry=reg, progress=False)
+    mesh = trimesh.load(dest / "hands/tri/urdf/meshes/visual/box.obj", force="mesh")
+    assert np.allclose(mesh.extents, (0.1, 0.2, 0.3))
+    handler.files[reg.sources["tri"].archive] = make_tar({**members, f"tri-{COMMIT}/robots/box.glb": glb + b"\0"})
+    (dest / ".downloads" / reg.sources["tri"].archive).unlink()
+    with pytest.raises(AssetError, match="sha256 mismatch in the archive"):
+        fetch_mod.fetch(["hands/tri"], dest, mirror=url, registry=reg, progress=False, force=True)
+    assert trimesh.load(dest / "hands/tri/urdf/meshes/visual/box.obj", force="mesh").vertices.shape[0] > 0  # kept
