@@ -73,6 +73,7 @@ class Exciter:
                 self.finger_of[j] = i
         self.classes = frame.fingers
         self._thumb_axis: dict[int, tuple[str, np.ndarray] | None] = {}
+        self._open_tips: np.ndarray | None = None
 
     def _unit_point(self, joint: str) -> tuple[np.ndarray, str | None]:
         i = self.finger_of.get(joint)
@@ -173,6 +174,14 @@ class Exciter:
         curl = _unit(np.cross(axis, own - self.poser.joint_anchor(joint)))
         return curl if np.linalg.norm(curl) > 1e-9 else None
 
+    def _rest_tips(self) -> np.ndarray:
+        if self._open_tips is None:
+            current = {n: self.poser.value(n) for n in self.poser.actuated}
+            self.poser.pose(self.poser.rest())
+            self._open_tips = tip_positions(self.poser, self.st)
+            self.poser.pose(current)
+        return self._open_tips
+
     def _opening(self, thumb: int, v: np.ndarray) -> float:
         """How much tip velocity ``v`` opens the angle between the thumb (first joint → tip) and the fingers'
         direction f: > 0 opens, in units of |v|."""
@@ -212,9 +221,13 @@ class Exciter:
                 if cls in ("middle", "wrist"):
                     target = tips[idx["thumb"]] if "thumb" in idx else None
                     away = (target - own) if target is not None else fr.lateral
-                else:
-                    ref = tips[idx["middle"]] if "middle" in idx else tips[non_thumb].mean(0)
-                    away = own - ref
+                else:  # which side of the middle finger is 'away' is read in the open hand (rest pose): long
+                    # claw digits excited half-flexed may have crossed the middle finger's line
+                    open_tips = self._rest_tips()
+                    ref = open_tips[idx["middle"]] if "middle" in idx else open_tips[non_thumb].mean(0)
+                    away = open_tips[i] - ref
+                    if abs(away @ fr.lateral) < 1e-6:
+                        away = own - (tips[idx["middle"]] if "middle" in idx else tips[non_thumb].mean(0))
                 d = (v @ fr.lateral) * np.sign(away @ fr.lateral)
             return (1 if d >= 0 else -1), min(1.0, abs(d) / max(np.linalg.norm(v), 1e-9))
         if cls == "thumb":  # +ROT (opposition) brings the (half-flexed) thumb tip toward the opposed fingertip
