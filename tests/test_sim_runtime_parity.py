@@ -46,6 +46,7 @@ def _eval_actions(policy: str, contract=None):
     from dgz_cli.cli.sim_cmd import _policy_factory
 
     make, meta = _policy_factory(policy)
+    view = meta.student.distill.view if meta is not None and meta.student is not None else None
     from dgz_cli.spec.envconfig import EnvConfig
 
     cfg = meta.env if meta is not None else EnvConfig(contract=contract or ControlContract())
@@ -55,7 +56,8 @@ def _eval_actions(policy: str, contract=None):
         rec["p"] = Recorder(make(env), cfg.contract.episode.episode_steps)
         return rec["p"]
 
-    records = run_episodes([(load_spec(resolve_spec(HAND)), resolve_objects(OBJECT)[0])], factory, 1, cfg, SEED)
+    records = run_episodes([(load_spec(resolve_spec(HAND)), resolve_objects(OBJECT)[0])], factory, 1, cfg, SEED,
+                           view=view)
     return np.array(rec["p"].actions), records[0]
 
 
@@ -81,3 +83,17 @@ def test_deploy_on_sim_reproduces_eval(policy, contract, tmp_path):
     assert header["contract"]["episode"]["grasp_steps"] == 120
     out = (tmp_path / "out.txt").read_text()
     assert ("episode succeeded" if record["success"] else "episode failed") in out
+
+
+def test_deploy_on_sim_reproduces_eval_for_a_student(tmp_path):
+    """A distilled student (issue 12) under its hardware view (joint noise, held cloud): the same observation
+    gives the same action in `dgz eval` and in the runtime, its history reset at the episode's start in both."""
+    from test_distill import make_student
+
+    student = str(make_student(tmp_path / "student"))
+    expected, record = _eval_actions(student)
+    got, header, end = _deploy_actions(student, tmp_path)
+    assert got.shape == expected.shape == (190, 6 + 3 * len(load_spec(resolve_spec(HAND)).nodes))
+    np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
+    assert np.ptp(expected[:, 6:], axis=0).max() > 0.1
+    assert header["privileged_zeroed"] == []

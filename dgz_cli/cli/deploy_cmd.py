@@ -80,6 +80,18 @@ def policy_env_config(policy: str, contract=None):
     return read_meta(directory).env if directory is not None else EnvConfig()
 
 
+def policy_view(policy: str):
+    """A distilled student's hardware view (the perturbations ``dgz eval`` applies to it), or None."""
+    if policy in ("scripted", "close") or ":" in policy:
+        return None
+    from dgz_cli.rl.checkpoint import read_meta, resolve_checkpoint
+    from dgz_cli.spec.catalog import policy_ref
+
+    directory = resolve_checkpoint(policy_ref(policy))
+    student = read_meta(directory).student if directory is not None else None
+    return None if student is None else student.distill.view
+
+
 def run(hand: str | None, port: str | None, policy: str, object_points: Path | None, dry_run: bool, fake: bool,
         yes: bool, log: Path | None, on_exit: str, replay: Path | None, console: Console, *,
         asset_root: str | None = None, allow_privileged: bool = False, arm: str = "none", arm_port: str | None = None,
@@ -131,7 +143,7 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
         objs = resolve_objects(sim_object, asset_root)
         if len(objs) != 1:
             raise DgzError(f"--sim-object '{sim_object}' names {len(objs)} objects", "give exactly one object name")
-        scene = SimScene(spec, objs[0], env_cfg, seed=seed, asset_root=asset_root)
+        scene = SimScene(spec, objs[0], env_cfg, seed=seed, asset_root=asset_root, view=policy_view(policy))
         driver, arm_if = SimSceneHand(scene, spec), SimSceneArm(scene)
         pol = load_policy(policy, spec, contract=contract, observation_builder=SimSceneObservation(scene),
                           grasp_offset=scene.env.grasp_offset[0], asset_root=asset_root)

@@ -34,7 +34,8 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
-             guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2) -> int:
+             guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2,
+             perturb: bool = True) -> int:
     from dgz_cli.sim.evaluate import failure_class, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
@@ -84,6 +85,11 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
                               f"{escape(policy)} was trained")
     objs = resolve_objects(objects, asset_root)
     pairs = [(s, o) for s in specs for o in objs]
+    # a distilled student observes what hardware gives, as recorded in its checkpoint (--no-perturb: the sim's)
+    view = meta.student.distill.view if meta is not None and meta.student is not None and perturb else None
+    if meta is not None and meta.student is not None:
+        console.print(f"student of {escape(meta.student.teacher_path)}; hardware view: "
+                      f"{escape(view.describe() if view is not None else 'none (--no-perturb)')}", highlight=False)
     t0 = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=True) as bar:
@@ -93,12 +99,13 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         for spec in specs:  # one env per hand keeps memory flat (one scene per object, not per pair)
             before = len(records)
             records += run_episodes([(spec, o) for o in objs], make_policy, trials, cfg, seed, asset_root,
-                                    progress=lambda done, total: bar.update(task, completed=before + done))
+                                    progress=lambda done, total: bar.update(task, completed=before + done), view=view)
     summary = summarize(records, cfg.contract.episode.lift_height, cfg.contract.episode.success_fraction)
     ep = cfg.contract.episode
     protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
                     trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps,
-                    guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll)
+                    guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll,
+                    hardware_view=None if view is None else view.model_dump())
     table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "
                         f"kept) and held {ep.hold_s} s; {trials} trials per object, seed {seed}")
     table.add_column("hand")

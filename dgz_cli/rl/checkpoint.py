@@ -7,7 +7,10 @@ switches ``checkpoint.yaml`` with one atomic rename: a kill at any moment leaves
 new checkpoint whole. Loading checks the weights' sha256 against the manifest.
 
 Format history: 1 (untyped dict, weights always ``model.safetensors``) is migrated on load by
-:func:`migrate_v1`; the two policies shipped before format 2 are format 1.
+:func:`migrate_v1`; the two policies shipped before format 2 are format 1. Format 3 (issue 12) is format 2
+plus a ``student`` section (:class:`~dgz_cli.rl.distill_config.StudentMeta`): a distilled student, whose
+observation layout has no privileged block and whose forward also reads a history of the last steps
+(:mod:`dgz_cli.policy.student`); teachers are still written as format 2, so older readers keep reading them.
 """
 
 from __future__ import annotations
@@ -19,16 +22,18 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dgz_cli.policy.presets import MagcnConfig
 from dgz_cli.rl.config import TrainConfig
+from dgz_cli.rl.distill_config import StudentMeta
 from dgz_cli.spec.contract import ActionLayout, ControlContract, EpisodeProtocol, ObservationLayout
 from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
 
 FORMAT = 2
+STUDENT_FORMAT = 3
 META_FILE = "checkpoint.yaml"
 MAX_META_BYTES = 4 << 20
 MAX_WEIGHTS_BYTES = 2 << 30
@@ -47,7 +52,7 @@ class CheckpointMeta(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    format: Literal[2] = FORMAT
+    format: Literal[2, 3] = FORMAT
     iteration: int = Field(ge=0)
     weights: str = Field(pattern=r"^[A-Za-z0-9_.-]+\.safetensors$", description="weights file in the same folder")
     weights_sha256: str | None = Field(None, pattern=r"^[0-9a-f]{64}$", description="None only for migrated format 1")
@@ -60,6 +65,17 @@ class CheckpointMeta(BaseModel):
     reward_normalizer: NormalizerState | None = None
     last: dict[str, float | int | None] | None = Field(None, description="the last history row")
     warm_start: dict[str, Any] | None = Field(None, description="behaviour-cloning statistics, if warm-started")
+    student: StudentMeta | None = Field(None, description="format 3: a distilled student (``train`` is then its "
+                                        "teacher's run config, ``model`` its backbone's)")
+
+    @model_validator(mode="after")
+    def _student_format(self) -> "CheckpointMeta":
+        if (self.format == STUDENT_FORMAT) != (self.student is not None):
+            raise ValueError("format 3 marks a student checkpoint: it needs the 'student' section, and only it has one")
+        if self.student is not None and self.env.contract.privileged_inputs:
+            raise ValueError(f"a student observes no privileged inputs; its layout has "
+                             f"{list(self.env.contract.privileged_inputs)}")
+        return self
 
     @property
     def contract(self) -> ControlContract:
@@ -223,7 +239,13 @@ class LoadedPolicy:
 
         self.directory = Path(directory)
         tensors, self.meta = load(self.directory)
-        self.model = MAGCN(self.meta.model, self.meta.contract)
+        self.history = None  # a student's TokenHistory, sized on the first act
+        if self.meta.student is not None:
+            from dgz_cli.policy.student import StudentMAGCN
+
+            self.model = StudentMAGCN(self.meta.model, self.meta.contract, self.meta.student.distill.student)
+        else:
+            self.model = MAGCN(self.meta.model, self.meta.contract)
         weights = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
         try:
             self.model.load_state_dict(weights)
@@ -239,16 +261,31 @@ class LoadedPolicy:
         self._torch = torch
 
     def reset(self, mask=None) -> None:
-        """The MAGCN is stateless (an evaluation loop calls this when episodes end)."""
+        """An episode starts where ``mask`` (B,) is True (everywhere when None; an evaluation loop calls this
+        when episodes end, the deploy loop before its episode): a student forgets those histories. The
+        MAGCN teacher is stateless."""
+        if self.history is not None:
+            self.history.reset(mask)
+
+    def _inputs(self, obs: dict):
+        """Observation tensors; for a student, this step's token is pushed and the history added."""
+        from dgz_cli.policy.graph import to_tensors
+
+        self._torch.set_num_threads(1)
+        obs_t = to_tensors(obs)
+        if self.meta.student is None:
+            return obs_t
+        from dgz_cli.policy.student import TokenHistory, student_obs, tokens
+
+        b = obs_t["nodes"].shape[0]
+        if self.history is None or self.history.buf.shape[0] != b:
+            self.history = TokenHistory(b, self.meta.student.distill.student.history, self.model.token_dim)
+        lay = self.meta.contract.observation
+        tok = tokens(obs_t["nodes"].numpy(), obs_t["global"].numpy(), obs_t["node_valid"].numpy(), lay)
+        return student_obs(obs_t, self.history.push(tok))
 
     def act(self, obs: dict):
-        from dgz_cli.policy.graph import to_tensors
-
-        self._torch.set_num_threads(1)
-        return self.model.act(to_tensors(obs)).numpy()
+        return self.model.act(self._inputs(obs)).numpy()
 
     def sample(self, obs: dict):
-        from dgz_cli.policy.graph import to_tensors
-
-        self._torch.set_num_threads(1)
-        return self.model.sample(to_tensors(obs))["action"].numpy()
+        return self.model.sample(self._inputs(obs))["action"].numpy()

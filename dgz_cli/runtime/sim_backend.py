@@ -36,12 +36,14 @@ class SimClock:
 
 
 class SimScene:
-    """The shared env slot: ``spec`` × ``obj`` under ``cfg`` (the policy's env config), reset with ``seed``."""
+    """The shared env slot: ``spec`` × ``obj`` under ``cfg`` (the policy's env config), reset with ``seed``;
+    ``view``: a distilled student's hardware perturbations (the ones ``dgz eval`` applies to it)."""
 
-    def __init__(self, spec: HandSpec, obj, cfg: EnvConfig, seed: int = 0, asset_root: str | None = None) -> None:
-        from dgz_cli.sim.env import GraspEnv
+    def __init__(self, spec: HandSpec, obj, cfg: EnvConfig, seed: int = 0, asset_root: str | None = None,
+                 view=None) -> None:
+        from dgz_cli.sim.evaluate import make_env
 
-        self.env = GraspEnv([(spec, obj)], cfg, seed=seed, asset_root=asset_root, threads=1)
+        self.env = make_env([(spec, obj)], cfg, seed=seed, asset_root=asset_root, threads=1, view=view)
         self.seed = seed
         self.obs: dict | None = None
         self.pending = False

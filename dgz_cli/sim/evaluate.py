@@ -11,6 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from dgz_cli.spec.envconfig import EnvConfig
+from dgz_cli.spec.hardware_view import HardwareView
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import ObjectModel
 from dgz_cli.spec.models import HandSpec
@@ -18,10 +19,11 @@ from dgz_cli.spec.models import HandSpec
 
 def run_episodes(pairs: list[tuple[HandSpec, ObjectModel]], make_policy: Callable[[GraspEnv], object], trials: int,
                  cfg: EnvConfig = EnvConfig(), seed: int = 0, asset_root: str | None = None, threads: int = 2,
-                 progress: Callable[[int, int], None] | None = None) -> list[dict]:
+                 progress: Callable[[int, int], None] | None = None, view: HardwareView | None = None) -> list[dict]:
     """Run ``trials`` episodes on every pair; ``make_policy(env)`` returns an object with
-    ``act(obs) -> action`` and ``reset(mask)``. Records: hand, object, trial, success, return_, r_*."""
-    env = GraspEnv(pairs, cfg, seed=seed, asset_root=asset_root, threads=threads)
+    ``act(obs) -> action`` and ``reset(mask)``. Records: hand, object, trial, success, return_, r_*.
+    ``view``: the hardware perturbations the policy observes under (a distilled student's; None = none)."""
+    env = make_env(pairs, cfg, seed=seed, asset_root=asset_root, threads=threads, view=view)
     policy = make_policy(env)
     obs = env.reset(seed)
     policy.reset(None)
@@ -42,6 +44,17 @@ def run_episodes(pairs: list[tuple[HandSpec, ObjectModel]], make_policy: Callabl
                 progress(min(total, int(np.minimum(done_count, trials).sum())), total)
     env.close()
     return records
+
+
+def make_env(pairs: list[tuple[HandSpec, ObjectModel]], cfg: EnvConfig, *, view: HardwareView | None = None,
+             **kwargs) -> GraspEnv:
+    """A :class:`GraspEnv`, or under an active hardware ``view`` a
+    :class:`~dgz_cli.sim.hardware.HardwareViewEnv` (the observation a real hand and camera give)."""
+    if view is not None and view.active:
+        from dgz_cli.sim.hardware import HardwareViewEnv
+
+        return HardwareViewEnv(pairs, cfg, view, **kwargs)
+    return GraspEnv(pairs, cfg, **kwargs)
 
 
 FAILURE_CLASSES = ("never touched", "pushed away", "not lifted", "dropped during hold", "unstable")
