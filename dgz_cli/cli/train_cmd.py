@@ -191,3 +191,16 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
                         ("iteration", "success_rate", "mean_return", "steps_per_s")))
     console.print(table)
     return 0
+
+
+def bench(given: dict, config_file: Path | None, iterations: int, asset_root: str | None) -> dict:
+    """`dgz bench train`: the Trainer that `dgz train` would build from the same options, run for
+    ``iterations`` iterations into a throw-away folder (see :mod:`dgz_cli.bench.train_bench`)."""
+    import tempfile
+
+    from dgz_cli.bench import train_bench
+
+    with tempfile.TemporaryDirectory(prefix="dgz-bench-train-") as tmp:
+        out = Path(tmp) / "run"
+        cfg = _load_config({**given, "iterations": iterations, "checkpoint_every": 10**6}, config_file, out, False)
+        return train_bench.measure(build(cfg, out, asset_root), iterations)
