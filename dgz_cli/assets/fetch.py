@@ -221,7 +221,8 @@ def _extract(archive: Path, source: Source, wanted: dict[str, list[tuple[str, st
                     raise AssetError(f"{where}: {m.size} bytes, more than {MAX_MEMBER_BYTES >> 20} MB",
                                      "the archive is not the pinned upstream one")
                 src = tar.extractfile(m)
-                edited = any(e.replace or e.convert or e.source_sha256 for _, _, e in wanted[member])
+                edited = len(wanted[member]) > 1 or any(e.replace or e.convert or e.source_sha256
+                                                        for _, _, e in wanted[member])
                 raw = src.read(MAX_EDIT_BYTES + 1) if edited else None
                 if raw is not None and len(raw) > MAX_EDIT_BYTES:
                     raise AssetError(f"{where}: too large to edit", "the archive is not the pinned upstream one")
