@@ -215,3 +215,31 @@ def test_compact_preset_is_much_cheaper_and_deep_enough():
         get_preset("huge")
     with pytest.raises(Exception):
         MagcnConfig(gcn_widths=())
+
+
+def test_separate_critic_owns_the_value_and_never_moves_the_actor():
+    """critic_widths (issue 11, lever 7): the value comes from the critic's own trunk; a value loss reaches only
+    critic parameters and a policy loss only actor parameters; the actor's outputs equal the shared-trunk
+    model's with the same actor weights."""
+    cfg = SMALL.model_copy(update=dict(critic_widths=(8, 8)))
+    m = model(cfg)
+    shared = model(SMALL)
+    shared.load_state_dict({k: v for k, v in m.state_dict().items() if not k.startswith(("critic.", "value_head."))},
+                           strict=False)
+    obs = to_tensors(cat(graph(n_pad=10), graph([-1, 0, 1], n_pad=10, seed=1)))
+    mean, log_std, value = m(obs)
+    torch.testing.assert_close(mean, shared(obs)[0])
+    critic = {n for n, _ in m.named_parameters() if n.startswith(("critic.", "value_head."))}
+    assert any(n.startswith("critic.gcn.") for n in critic)
+    value.sum().backward()
+    for n, p in m.named_parameters():
+        assert (p.grad is not None and p.grad.abs().sum() > 0) == (n in critic), n
+    m.zero_grad(set_to_none=True)
+    m.evaluate(obs, torch.randn(2, 36))[0].sum().backward()
+    assert all(p.grad is None or not p.grad.any() for n, p in m.named_parameters() if n in critic)
+    # analytic FLOPs: the shared value head is replaced by the critic trunk + its head
+    n = 20
+    lay = ControlContract().observation
+    trunk = (n * (27 * 32 + 32 * 8) + n * (lay.node_dim + 8) * 8 + n * n * 8 + n * (8 + 8) * 8 + n * n * 8
+             + lay.global_dim * 8)
+    assert flops_per_graph(cfg, n) - flops_per_graph(SMALL, n) == 2 * (trunk + 16 * 16 - (32 + 24) * 16)

@@ -38,6 +38,40 @@ def _mlp(i: int, h: int, o: int, act: type[nn.Module], out_gain: float) -> nn.Se
     return net
 
 
+class GraphTrunk(nn.Module):
+    """φ_p, GCN layers and φ_g of a MAGCN-shaped encoder (the separate critic's; the actor keeps its own
+    attributes so that checkpoints keep their parameter names)."""
+
+    def __init__(self, node_dim: int, global_dim: int, widths: tuple[int, ...], cfg: MagcnConfig) -> None:
+        super().__init__()
+        p = cfg.phys_out if cfg.use_physical else 0
+        self.phys = (nn.Sequential(nn.Linear(cfg.phys_dim, cfg.phys_hidden), nn.LeakyReLU(),
+                                   nn.Linear(cfg.phys_hidden, cfg.phys_out)) if cfg.use_physical else None)
+        self.fuse = [cfg.use_physical and (l == 0 or not cfg.early_fusion) for l in range(len(widths))]
+        self.gcn = nn.ModuleList(nn.Linear(i + (p if f else 0), o, bias=False)
+                                 for i, o, f in zip([node_dim, *widths[:-1]], widths, self.fuse))
+        self.norms = nn.ModuleList(nn.LayerNorm(o) for o in widths)
+        self.glob = nn.Sequential(nn.Linear(global_dim, widths[-1]), nn.LeakyReLU())
+
+    def forward(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor]:
+        """(E_g (B, w_L), E_node (B, N, w_L)), padded node rows zero."""
+        return _encode(obs, self.phys, self.gcn, self.norms, self.fuse, self.glob)
+
+
+def _encode(obs: Obs, phys, gcn, norms, fuse, glob) -> tuple[torch.Tensor, torch.Tensor]:
+    valid = obs["node_valid"]
+    vf = valid.to(obs["nodes"].dtype)[..., None]
+    ahat = normalized_adjacency(obs["adjacency"], valid)
+    ep = phys(obs["physical"]) if phys is not None else None
+    h = obs["nodes"]
+    for lin, norm, f in zip(gcn, norms, fuse):
+        z = torch.cat([h, ep], dim=-1) if f else h
+        # Padded rows become ReLU(LN(0)) here but Â has zero columns for them, so they never mix into
+        # valid rows; they are zeroed once at the end (cheaper than masking every layer).
+        h = torch.relu_(norm(torch.bmm(ahat, lin(z))))
+    return glob(obs["global"]), h * vf
+
+
 class MAGCN(nn.Module):
     def __init__(self, cfg: MagcnConfig = MagcnConfig(), contract: ControlContract = ControlContract()) -> None:
         super().__init__()
@@ -59,7 +93,11 @@ class MAGCN(nn.Module):
         d = cfg.gcn_widths[-1]
         self.wrist_head = _mlp(cfg.global_hidden + d, cfg.head_hidden, self.wrist_dim, nn.LeakyReLU, 0.01)
         self.node_head = _mlp(d + self.n_prim, cfg.head_hidden, self.n_prim, nn.LeakyReLU, 0.01)
-        self.value_head = _mlp(cfg.global_hidden + d, cfg.value_hidden, 1, nn.ReLU, 1.0)
+        if cfg.critic_widths is None:
+            self.value_head = _mlp(cfg.global_hidden + d, cfg.value_hidden, 1, nn.ReLU, 1.0)
+        else:
+            self.critic = GraphTrunk(self.node_dim, self.global_dim, cfg.critic_widths, cfg)
+            self.value_head = _mlp(2 * cfg.critic_widths[-1], cfg.value_hidden, 1, nn.ReLU, 1.0)
         self.log_std_wrist = nn.Parameter(torch.full((self.wrist_dim,), cfg.init_log_std))
         prim_shape = (len(NODE_TYPES), self.n_prim) if cfg.log_std_per_type else (self.n_prim,)
         self.log_std_prim = nn.Parameter(torch.full(prim_shape, cfg.init_log_std))
@@ -69,17 +107,7 @@ class MAGCN(nn.Module):
     # ------------------------------------------------------------------ encoder
     def encode(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor]:
         """Return (E_g (B, global_hidden), E_node (B, N, w_L)); padded node rows are zero."""
-        valid = obs["node_valid"]
-        vf = valid.to(obs["nodes"].dtype)[..., None]
-        ahat = normalized_adjacency(obs["adjacency"], valid)
-        ep = self.phys(obs["physical"]) if self.phys is not None else None
-        h = obs["nodes"]
-        for lin, norm, fuse in zip(self.gcn, self.norms, self.fuse):
-            z = torch.cat([h, ep], dim=-1) if fuse else h
-            # Padded rows become ReLU(LN(0)) here but Â has zero columns for them, so they never mix into
-            # valid rows; they are zeroed once at the end (cheaper than masking every layer).
-            h = torch.relu_(norm(torch.bmm(ahat, lin(z))))
-        return self.glob(obs["global"]), h * vf
+        return _encode(obs, self.phys, self.gcn, self.norms, self.fuse, self.glob)
 
     def wrist_embedding(self, obs: Obs, h: torch.Tensor) -> torch.Tensor:
         """(B, w_L): mean embedding of the wrist-type node(s); masked mean of all nodes if a graph has none."""
@@ -108,6 +136,8 @@ class MAGCN(nn.Module):
         else:
             prim = self.log_std_prim.repeat(n).expand(b, -1)
         log_std = torch.cat([self.log_std_wrist.expand(b, -1), prim], dim=-1) * av
+        if self.cfg.critic_widths is not None:
+            eg, h = self.critic(obs)
         value = self.value_head(torch.cat([eg, masked_mean(h, valid)], dim=-1)).squeeze(-1)
         return mean, log_std, value
 
@@ -187,14 +217,21 @@ def flops_per_graph(cfg: MagcnConfig, n_nodes: int = 20, contract: ControlContra
     n, p = n_nodes, (cfg.phys_out if cfg.use_physical else 0)
     node_dim, global_dim = contract.observation.node_dim, contract.observation.global_dim
     wrist_dim, n_prim = contract.action.wrist_dim, contract.action.n_prim
-    macs = n * (cfg.phys_dim * cfg.phys_hidden + cfg.phys_hidden * cfg.phys_out) if cfg.use_physical else 0
-    ins = [node_dim, *cfg.gcn_widths[:-1]]
-    for l, (i, o) in enumerate(zip(ins, cfg.gcn_widths)):
-        fuse = cfg.use_physical and (l == 0 or not cfg.early_fusion)
-        macs += n * (i + (p if fuse else 0)) * o + n * n * o
+
+    def trunk(widths: tuple[int, ...], global_out: int) -> int:
+        macs = n * (cfg.phys_dim * cfg.phys_hidden + cfg.phys_hidden * cfg.phys_out) if cfg.use_physical else 0
+        for l, (i, o) in enumerate(zip([node_dim, *widths[:-1]], widths)):
+            fuse = cfg.use_physical and (l == 0 or not cfg.early_fusion)
+            macs += n * (i + (p if fuse else 0)) * o + n * n * o
+        return macs + global_dim * global_out
+
+    macs = trunk(cfg.gcn_widths, cfg.global_hidden)
     d = cfg.gcn_widths[-1]
-    macs += global_dim * cfg.global_hidden
     macs += (cfg.global_hidden + d) * cfg.head_hidden + cfg.head_hidden * wrist_dim
     macs += n * ((d + n_prim) * cfg.head_hidden + cfg.head_hidden * n_prim)
-    macs += (cfg.global_hidden + d) * cfg.value_hidden + cfg.value_hidden
+    if cfg.critic_widths is None:
+        macs += (cfg.global_hidden + d) * cfg.value_hidden + cfg.value_hidden
+    else:
+        macs += trunk(cfg.critic_widths, cfg.critic_widths[-1])
+        macs += 2 * cfg.critic_widths[-1] * cfg.value_hidden + cfg.value_hidden
     return 2 * macs

@@ -33,12 +33,15 @@ class MagcnConfig(BaseModel):
     use_mask: bool = Field(True, description="ablation: False feeds zeros instead of the activation mask")
     log_std_per_type: bool = Field(False, description="one exploration log-std per (node type, primitive) "
                                    "instead of one per primitive shared by all nodes")
+    critic_widths: tuple[int, ...] | None = Field(None, description="a separate critic: its own GCN trunk of these "
+                                                  "widths (own φ_p and φ_g), so the value loss never moves the actor's "
+                                                  "features; None = the value head on the actor's trunk (the paper)")
 
-    @field_validator("gcn_widths")
+    @field_validator("gcn_widths", "critic_widths")
     @classmethod
-    def _widths(cls, v: tuple[int, ...]) -> tuple[int, ...]:
-        if not v or any(w <= 0 for w in v):
-            raise ValueError("gcn_widths must be a non-empty tuple of positive ints")
+    def _widths(cls, v: tuple[int, ...] | None) -> tuple[int, ...] | None:
+        if v is not None and (not v or any(w <= 0 for w in v)):
+            raise ValueError("GCN widths must be a non-empty tuple of positive ints")
         return v
 
     @property

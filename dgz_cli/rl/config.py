@@ -78,5 +78,7 @@ class TrainConfig(BaseModel):
     prior_close_step: int = Field(50, ge=0, description="control step from which the closing prior closes regardless")
     residual_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −mean a² over the "
                                    "policy's active action dims (its residual on the prior; 0 = off)")
+    critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "
+                                                  "paper), or a separate small critic (its own 32×4 GCN trunk)")
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     ppo: PPOConfig = PPOConfig()
