@@ -227,3 +227,38 @@ def test_closing_prior_by_hand_and_in_the_env():
         obs, *_ = env.step(np.zeros((1, env.action_dim)))
     assert obs["nodes"][0, :, lay.node_col("theta")][:, 0].max() > 0.03  # > 0.09 rad of flexion (÷ π)
     env.close()
+
+
+def test_early_stop_ends_hopeless_episodes_in_training_only():
+    """early_stop: a hand that never touches the object ends its episode as a true terminal state at the end
+    of the grasp phase (not the full 190 steps); eval's env builder turns the option off."""
+    from dgz_cli.sim.evaluate import make_env
+
+    cfg = EnvConfig(early_stop=True)
+    env = _env(cfg)
+    env.reset()
+    ep = cfg.contract.episode
+    away = np.zeros((1, env.action_dim))
+    away[0, 2] = -1.0  # back off along the palm normal: never touch
+    for k in range(ep.grasp_steps):
+        _, _, terminated, truncated, info = env.step(away)
+        if info["episode"]:
+            break
+    assert k == ep.grasp_steps - 1 and terminated[0] and not truncated[0]
+    rec = info["episode"][0]
+    assert rec["steps"] == ep.grasp_steps and not rec["touched"] and not rec["pushed"] and not rec["success"]
+    env.close()
+    full = make_env([(TRI, resolve_objects("box")[0])], cfg, seed=4, threads=1)
+    assert not full.cfg.early_stop
+    full.close()
+
+
+def test_throughput_levers_reach_the_env_config():
+    from dgz_cli.rl.config import TrainConfig
+    from dgz_cli.rl.runner import env_config
+
+    cfg = env_config(TrainConfig(physics_hz=200, early_stop=True))
+    assert cfg.contract.episode.substeps == 10 and cfg.early_stop
+    assert env_config(TrainConfig()).contract == ControlContract()  # defaults: the paper's 400 Hz, no early stop
+    with pytest.raises(ValueError, match="whole multiple"):
+        TrainConfig(physics_hz=250)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
 
@@ -80,5 +80,19 @@ class TrainConfig(BaseModel):
                                    "policy's active action dims (its residual on the prior; 0 = off)")
     critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "
                                                   "paper), or a separate small critic (its own 32×4 GCN trunk)")
+    early_stop: bool = Field(False, description="end training episodes that can no longer succeed (eval keeps the "
+                             "full protocol)")
+    physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "
+                              "200 halves the physics cost)")
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     ppo: PPOConfig = PPOConfig()
+
+    @field_validator("physics_hz")
+    @classmethod
+    def _whole_substeps(cls, v: float) -> float:
+        from dgz_cli.spec.contract import EpisodeProtocol
+
+        control_hz = EpisodeProtocol().control_hz
+        if abs(v / control_hz - round(v / control_hz)) > 1e-9:
+            raise ValueError(f"must be a whole multiple of the {control_hz:g} Hz control rate (e.g. 200 or 400)")
+        return v

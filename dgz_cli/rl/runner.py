@@ -25,7 +25,7 @@ from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
 from dgz_cli.rl.storage import RolloutStorage
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
-                                   ControlContract, ObservationLayout, WristGuidance)
+                                   ControlContract, EpisodeProtocol, ObservationLayout, WristGuidance)
 from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward, RewardWeights
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
@@ -58,11 +58,12 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
     contract = ControlContract(observation=layout,
                                action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
                                                    mask_actions=cfg.mask_actions),
+                               episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
                                guidance=WristGuidance(gain=cfg.guidance_gain),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
                                                   close_guide=cfg.prior_close_guide))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
-                     graspxl=GraspXLReward(residual=cfg.residual_weight), roll=cfg.roll)
+                     graspxl=GraspXLReward(residual=cfg.residual_weight), roll=cfg.roll, early_stop=cfg.early_stop)
 
 
 class Trainer:

@@ -276,11 +276,15 @@ class GraspEnv:
         self.ret += reward
         for k in self.terms:
             self.term_sums[k] += terms[k]
-        terminated = pushed & ok & ~done
+        push_end = pushed & ok & ~done
+        terminated = push_end.copy()
+        if cfg.early_stop:  # training only: an episode that can no longer succeed ends here (a true terminal state)
+            hopeless = ((self.t >= ep.grasp_steps) & ~self.touched) | ~self.ok_hold
+            terminated |= hopeless & ok & ~done
         info = {"reward_terms": terms, "unstable": ~ok, "success": success, "episode": {}}
         finished = np.nonzero(done | ~ok | terminated)[0]
         for b in finished:
-            info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], pushed=bool(terminated[b]),
+            info["episode"][int(b)] = dict(success=bool(success[b]), unstable=not ok[b], pushed=bool(push_end[b]),
                                            return_=float(self.ret[b]),
                                            steps=int(self.t[b]), max_rise=float(self.max_rise[b]), touched=bool(self.touched[b]),
                                            max_push=float(self.max_push[b]), rise_lift_end=float(self.rise_lift_end[b]),

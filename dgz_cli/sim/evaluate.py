@@ -49,7 +49,9 @@ def run_episodes(pairs: list[tuple[HandSpec, ObjectModel]], make_policy: Callabl
 def make_env(pairs: list[tuple[HandSpec, ObjectModel]], cfg: EnvConfig, *, view: HardwareView | None = None,
              **kwargs) -> GraspEnv:
     """A :class:`GraspEnv`, or under an active hardware ``view`` a
-    :class:`~dgz_cli.sim.hardware.HardwareViewEnv` (the observation a real hand and camera give)."""
+    :class:`~dgz_cli.sim.hardware.HardwareViewEnv` (the observation a real hand and camera give). Evaluation
+    and deploy run the full protocol: a training-only ``early_stop`` is turned off."""
+    cfg = cfg.model_copy(update=dict(early_stop=False)) if cfg.early_stop else cfg
     if view is not None and view.active:
         from dgz_cli.sim.hardware import HardwareViewEnv
 

@@ -72,3 +72,7 @@ class EnvConfig(_Frozen):
         "uniform", description="the hand's roll about the approach axis at reset: uniform, or the best of "
                                "roll_candidates for closing across the object's narrowest width")
     roll_candidates: int = Field(10, ge=1, le=360)
+    early_stop: bool = Field(False, description="training only (issue 11, throughput): end an episode as a true "
+                             "terminal state once it can no longer succeed — nothing touched by the end of the grasp "
+                             "phase, or the object not up when the hold starts or dropped during it; dgz eval and "
+                             "the MuJoCo deploy backend always run the full protocol")
