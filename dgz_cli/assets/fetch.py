@@ -348,11 +348,6 @@ def _write_marker(dest: Path, registry: Registry, report: FetchReport) -> None:
         srcs = sorted({e.source for e in registry.units[unit].files.values()})
         units[unit] = {s: registry.sources[s].commit for s in srcs}
     text = json.dumps(dict(format=1, units=dict(sorted(units.items()))), indent=1) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=".marker-", dir=dest)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, marker)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise _disk_error(exc, marker, "writing the asset marker") from None
+    from dgz_cli.spec.io import atomic_write
+
+    atomic_write(marker, text)  # temp file + rename, umask-derived mode; a write error is one line naming it
