@@ -12,10 +12,15 @@ is split into three scores whose squares sum to one for a pure rotation:
 
 The largest score names the primitive; margin = largest − second. A non-thumb joint that is a
 pure twist at the rest pose (Allegro-style finger roots) is excited again with the finger half
-flexed: if the twist then moves the fingertip sideways, it is ABD. Signs follow design.md:
-+FLEX moves the tip towards +n; +ABD moves it away from the middle finger (the middle finger
-and the wrist: towards the thumb; the thumb: away from the index); +ROT turns the digit's pad
-(its +n' side) towards the opposing digit (thumb → the other fingertips, fingers → the thumb).
+flexed: if the twist then moves the fingertip sideways, it is ABD. The reference normal is n;
+for a digit of a radial hand (claw, opposed digits, jaw) the direction from its tip toward the
+grasp axis, so each digit's signs come from its own excitation; for the thumb the direction to
+the index tip, except that its primitive is decided by its own curl axis (the axis of its last
+revolute joint) when the two disagree. Signs follow design.md: +FLEX moves the tip towards the
+reference; +ABD moves it away from the middle finger (sides read in the open hand; the middle
+finger and the wrist: towards the thumb; the thumb: opens the thumb-finger angle for swings in
+the palm plane, +n for palmar ones); +ROT turns the digit's pad (its +n' side) towards the
+opposing digit (thumb → the other fingertips, fingers → the thumb).
 """
 
 from __future__ import annotations

@@ -2,12 +2,18 @@
 
 Rules (documented in docs/onboarding.md):
 - curl_i: at the rest pose, the direction fingertip i moves when its last joint closes
-  (closing = towards the wider side of that joint's range; a digit's last joint always curls).
-- Thumb: the finger whose curl agrees least with the others (lowest mean cosine); none if
-  every finger curls alike (mean cosine > 0.9 for all).
-- a: the mean closing axis of the non-thumb fingers' last joints; f: from the palm centre
-  (centroid of the palm's collision geometry) towards the non-thumb fingertips, orthogonal to
-  a; n = a × f (the side the fingers curl to); l = n × f. Palm frame axes: x = f, y = l, z = n.
+  (revolute: toward the wider side of that joint's range; prismatic: toward the other fingertips).
+- dir_i: from digit i's first joint to the centre of its last link's collision geometry.
+- Thumb: the digit that agrees least with the others, agreement = mean over the others of
+  min(cos curl, cos dir); it must agree < 0.95, stand out from the runner-up by > 0.02, and the
+  other digits must all curl to one side (no two close toward each other, as on a claw). A
+  runner-up within 0.01-0.02 is refused by name (the thumb is ambiguous).
+- Radial hands (no thumb, |mean curl| < 0.5: claws, opposed digits, parallel jaws): f from the
+  palm centre to the mean fingertip (the grasp axis), n from the first digit's tip toward that
+  axis, l = n × f; classes by angle about f.
+- Otherwise: a = the mean closing axis of the non-thumb fingers' last joints; f: from the palm
+  centre (centroid of the palm's collision geometry) towards the non-thumb fingertips, orthogonal
+  to a; n = a × f (the side the fingers curl to); l = n × f. Palm frame axes: x = f, y = l, z = n.
 - Side: right when the thumb base lies on the −l side of the other finger bases.
 - Classes across the palm from the thumb side: 4 fingers index..little, 3 index..ring,
   2 middle/ring, 1 middle (Barrett = thumb/middle/ring, as in the paper).

@@ -9,8 +9,8 @@ A primitive command α is pushed through M_h (Δq_j = s_j · α[n_j, p_j], clipp
    "away" is judged by the sides the fingertips lie on in the open hand: long claw digits may
    have crossed each other's line at the half-closed pose;
 3. from the rest pose, +FLEX and +ROT (0.3 rad) on the thumb's nodes bring the thumb tip toward
-   the index tip (or the nearest other fingertip when there is no index), or mostly toward the
-   palm side (+n) for a thumb beside the palm.
+   the index tip (or the nearest other fingertip when there is no index), or toward that finger
+   (its base → tip segment), or mostly toward the palm side (+n) for a thumb beside the palm.
 Distances are measured in the palm link's frame, so wrist joints do not fool the check.
 """
 
@@ -45,6 +45,19 @@ def _apply(spec: HandSpec, poser, prims: set[str], fingers: set[str] | None, ste
            start: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     poser.pose(_command(spec, start if start is not None else poser.rest(), prims, fingers, step))
     return _tips(spec, poser)
+
+
+def _finger_base(spec: HandSpec, poser, finger: str) -> np.ndarray:
+    """Palm-frame position of a finger's first node anchor (at the current pose)."""
+    node = next(n for n in spec.nodes if n.finger == finger and n.parent == "wrist")
+    rot, pos = poser.link_rot(spec.palm.link), poser.link_pos(spec.palm.link)
+    return rot.T @ (poser.link_pos(node.anchor_link, np.array(node.anchor_point)) - pos)
+
+
+def _to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    t = float(np.clip((p - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0))
+    return float(np.linalg.norm(p - (a + t * ab)))
 
 
 def _palmward(move: np.ndarray, normal: np.ndarray) -> bool:
@@ -112,11 +125,13 @@ def functional_check(spec: HandSpec, poser) -> list[str]:
     if "thumb" in rest and fingers_with["FLEX"] | fingers_with["ROT"] >= {"thumb"}:
         target = "index" if "index" in rest else min((f for f in rest if f != "thumb"),
                                                      key=lambda f: np.linalg.norm(rest[f] - rest["thumb"]))
+        base = _finger_base(spec, poser, target)
         opposed = _apply(spec, poser, {"FLEX", "ROT"}, {"thumb"}, OPPOSE)
         nearer = np.linalg.norm(opposed["thumb"] - rest[target]) < np.linalg.norm(rest["thumb"] - rest[target])
-        # a thumb lying beside the palm curls toward the palm side (+n) first: that closes it too
-        if not (nearer or _palmward(opposed["thumb"] - rest["thumb"], normal)):
-            problems.append(f"thumb +FLEX/+ROT brings the thumb tip neither toward the {target} tip nor toward "
+        # a thumb lying beside the palm curls toward the palm side (+n), or across toward the finger, first
+        finger = _to_segment(opposed["thumb"], base, rest[target]) < _to_segment(rest["thumb"], base, rest[target])
+        if not (nearer or finger or _palmward(opposed["thumb"] - rest["thumb"], normal)):
+            problems.append(f"thumb +FLEX/+ROT brings the thumb tip neither toward the {target} finger nor toward "
                             "the palm side")
     poser.pose(poser.rest())
     return problems
