@@ -211,3 +211,29 @@ def test_lint_abd_check_does_not_refuse_long_claw_digits(tmp_path):
     assert all(labels[f"{d}_j{k}"] == ("FLEX", 1) for d in "abc" for k in (1, 2)), labels
     assert all(labels[f"{d}_spread"][0] == "ABD" for d in "abc"), labels
     assert _lint_errors(result, tmp_path) == []
+
+
+# ---- the thumb rule itself --------------------------------------------------------------------------------------
+
+def _rot_z(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([c, s, 0.0])
+
+
+def test_thumb_rule_clear_none_radial_and_ambiguous():
+    from dgz_cli.onboard.frame import ThumbAmbiguous, find_thumb
+
+    up = np.array([0.0, 0.0, 1.0])
+    fingers = [_rot_z(0)] * 3
+    # a thumb pointing 40° off the fingers (curling like them) is found by its direction
+    thumb, margin = find_thumb(np.array([up] * 4), np.array(fingers + [_rot_z(-40)]))
+    assert thumb == 3 and margin > 0.1
+    # four parallel fingers: no thumb
+    assert find_thumb(np.array([up] * 4), np.array([_rot_z(0)] * 4))[0] is None
+    # a claw (curls toward each other, same direction): no thumb, even with one digit slightly off
+    curls = np.array([-_rot_z(a) for a in (0, 120, 240)])
+    assert find_thumb(curls, np.array([up, up, [0.0, 0.2, 0.98]]))[0] is None
+    # two thumb-like digits that stand out almost equally: refused by name, not guessed
+    dirs = np.array([_rot_z(0), _rot_z(0), _rot_z(0), _rot_z(-30), _rot_z(32)])
+    with pytest.raises(ThumbAmbiguous):
+        find_thumb(np.array([up] * 5), dirs)
