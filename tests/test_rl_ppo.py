@@ -179,3 +179,44 @@ def test_adaptive_lr_and_optimizer_state_round_trip():
     assert other.learning_rate == stats["learning_rate"] == other.schedule.lr
     for k, v in other.optimizer_tensors().items():
         torch.testing.assert_close(v, tensors[k])
+
+
+def test_prioritised_mini_batches_follow_the_env_weights():
+    """Lever 8: with env priorities the mini-batches draw T·B transitions with replacement, env b's ∝ weight b;
+    a zero weight is never drawn, bad weights are refused, and None restores the one shuffled pass."""
+    T, B = 5, 4
+    st = RolloutStorage(T, B, seed=1)
+    obs = toy_obs(B)
+    obs["physical"] = np.broadcast_to(np.arange(B, dtype=np.float32)[:, None, None], (B, 4, 27)).copy()  # env id
+    for t in range(T):
+        obs["global"] = np.full((B, 16), t, np.float32)
+        st.add(obs, np.zeros((B, 18)), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B, bool), np.zeros(B, bool))
+    st.compute_returns(torch.zeros(B), 0.9, 0.9)
+    st.set_env_priority(np.array([3.0, 1.0, 0.0, 0.0]))
+    envs = [int(e) for _ in range(300) for mb in st.mini_batches(2) for e in mb.obs["physical"][:, 0, 0]]
+    assert len(envs) == 300 * T * B
+    counts = np.bincount(envs, minlength=B)
+    assert counts[2] == counts[3] == 0 and abs(counts[0] / counts[1] - 3.0) < 0.25
+    for bad in (np.zeros(B), np.array([1.0, -1.0, 1.0, 1.0]), np.array([1.0, np.nan, 1.0, 1.0]), np.ones(3)):
+        with pytest.raises(ValueError, match="priorities"):
+            st.set_env_priority(bad)
+    st.set_env_priority(None)
+    seen = [int(t * B + b) for mb in st.mini_batches(2)
+            for t, b in zip(mb.obs["global"][:, 0], mb.obs["physical"][:, 0, 0])]
+    assert sorted(seen) == list(range(T * B))
+
+
+def test_env_priority_from_pair_success_emas_by_hand():
+    from types import SimpleNamespace
+
+    from dgz_cli.rl.config import TrainConfig
+    from dgz_cli.rl.runner import PAIR_EMA, Trainer
+
+    me = SimpleNamespace(pair_success={}, cfg=TrainConfig(failure_priority=0.1),
+                         env=SimpleNamespace(pair_names=["a/x", "a/y", "b/x", "a/x"]))
+    ep = lambda h, o, s: dict(hand=h, object=o, success=s)  # noqa: E731
+    w = Trainer.env_priority(me, [ep("a", "x", True), ep("a", "y", False)])
+    np.testing.assert_allclose(w, [0.1, 1.1, 1.1, 0.1])  # first outcomes set the EMAs; b/x unseen: 1 − 0 + 0.1
+    w = Trainer.env_priority(me, [ep("a", "x", False)])
+    np.testing.assert_allclose(w[0], 1 - (1 - PAIR_EMA) + 0.1)
+    assert me.pair_success == {"a/x": pytest.approx(1 - PAIR_EMA), "a/y": 0.0}

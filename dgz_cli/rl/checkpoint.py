@@ -65,6 +65,8 @@ class CheckpointMeta(BaseModel):
     reward_normalizer: NormalizerState | None = None
     last: dict[str, float | int | None] | None = Field(None, description="the last history row")
     warm_start: dict[str, Any] | None = Field(None, description="behaviour-cloning statistics, if warm-started")
+    pair_success: dict[str, float] | None = Field(None, description="success EMA per 'hand/object' pair (prioritised "
+                                                  "sampling's state)")
     student: StudentMeta | None = Field(None, description="format 3: a distilled student (``train`` is then its "
                                         "teacher's run config, ``model`` its backbone's)")
 

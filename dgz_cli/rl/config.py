@@ -80,6 +80,9 @@ class TrainConfig(BaseModel):
                                    "policy's active action dims (its residual on the prior; 0 = off)")
     critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "
                                                   "paper), or a separate small critic (its own 32×4 GCN trunk)")
+    failure_priority: float | None = Field(None, gt=0, le=10, description="prioritised sampling of failing (hand, "
+                                           "object) pairs: PPO mini-batches draw an env's transitions ∝ (1 − its pair's "
+                                           "success EMA) + this floor; None = uniform")
     early_stop: bool = Field(False, description="end training episodes that can no longer succeed (eval keeps the "
                              "full protocol)")
     physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "

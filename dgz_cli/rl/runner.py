@@ -39,6 +39,7 @@ ABLATION_MODEL = {
 }
 
 
+PAIR_EMA = 0.2  # prioritised sampling: weight of a new episode outcome in its pair's success EMA
 SEPARATE_CRITIC_WIDTHS = (32, 32, 32, 32)  # ~0.4 of compact's trunk FLOPs: 4 hops, cheap next to the actor
 
 
@@ -68,8 +69,8 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
 
 class Trainer:
     """PPO on an env it is given (``GraspEnv`` or anything with its ``reset``/``step``/``B``/``action_dim``/
-    ``cfg``/``timing``/``instabilities``/``close``). ``training_hands`` maps each hand name to its spec's
-    sha256, recorded in every checkpoint."""
+    ``cfg``/``timing``/``instabilities``/``close``, and ``pair_names`` for prioritised sampling).
+    ``training_hands`` maps each hand name to its spec's sha256, recorded in every checkpoint."""
 
     def __init__(self, cfg: TrainConfig, env, out: Path, training_hands: dict[str, str], resume: bool = False,
                  log: Callable[[dict], None] | None = None, on_warm_start: Callable[[dict], None] | None = None,
@@ -86,6 +87,7 @@ class Trainer:
         self.iteration = 0
         self.history: list[dict] = []
         self.warm_start: dict | None = None  # behaviour-cloning statistics, once done
+        self.pair_success: dict[str, float] = {}  # 'hand/object' → success EMA (prioritised sampling)
         self.git_revision = checkpoint.git_revision()
         if resume:
             self._resume()
@@ -98,7 +100,8 @@ class Trainer:
             iteration=self.iteration, weights="model.safetensors", train=self.cfg, model=self.model.cfg,
             env=self.env.cfg, training_hands=self.training_hands, git_revision=self.git_revision,
             learning_rate=float(self.ppo.learning_rate), reward_normalizer=NormalizerState(**self.reward_norm.state()),
-            last=self.history[-1] if self.history else None, warm_start=self.warm_start)
+            last=self.history[-1] if self.history else None, warm_start=self.warm_start,
+            pair_success=self.pair_success or None)
 
     def save(self) -> None:
         if not all(bool(torch.isfinite(p).all()) for p in self.model.parameters()):
@@ -120,6 +123,7 @@ class Trainer:
                                         meta.learning_rate)
         self.iteration = meta.iteration
         self.warm_start = meta.warm_start
+        self.pair_success = dict(meta.pair_success or {})
         if meta.reward_normalizer is not None:
             self.reward_norm.load(meta.reward_normalizer.model_dump())
         hist = self.out / "history.jsonl"
@@ -176,6 +180,16 @@ class Trainer:
         self.save()  # iteration 0: the clone alone, before any PPO update
         self.on_warm_start(self.warm_start)
 
+    def env_priority(self, episodes: list[dict]) -> np.ndarray:
+        """(B,) sampling weights: (1 − success EMA of the env's hand/object pair) + ``failure_priority``, after
+        folding this iteration's ended ``episodes`` into the EMAs (rate PAIR_EMA; a new pair starts at its first
+        outcome)."""
+        for e in episodes:
+            key = f"{e['hand']}/{e['object']}"
+            old = self.pair_success.get(key)
+            self.pair_success[key] = float(e["success"]) if old is None else old + PAIR_EMA * (float(e["success"]) - old)
+        return np.array([1.0 - self.pair_success.get(k, 0.0) + self.cfg.failure_priority for k in self.env.pair_names])
+
     def _iteration(self, obs: dict) -> dict:
         env, t0 = self.env, time.perf_counter()
         phys0, other0 = env.timing["physics_s"], env.timing["env_other_s"]
@@ -203,6 +217,8 @@ class Trainer:
             episodes += list(info["episode"].values())
             reward_sum += float(reward.mean())
             obs = next_obs
+        if self.cfg.failure_priority is not None:
+            self.storage.set_env_priority(self.env_priority(episodes))
         tf = time.perf_counter()
         last_value = self.ppo.value(to_tensors(obs))
         forward_s += time.perf_counter() - tf

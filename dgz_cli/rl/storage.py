@@ -45,6 +45,7 @@ class RolloutStorage:
         self.T, self.B, self.device = num_steps, num_envs, torch.device(device)
         self._static_request, self.obs = tuple(static_keys), {}
         self.A: int | None = None
+        self.env_priority: torch.Tensor | None = None  # (B,) sampling weights of the envs' transitions; None = uniform
         self.clear()
         self.generator = torch.Generator().manual_seed(seed)
         if obs_example is not None and action_dim is not None:
@@ -120,8 +121,20 @@ class RolloutStorage:
         self.returns = self.advantages + self.values
         self.has_returns = True
 
+    def set_env_priority(self, priority) -> None:
+        """(B,) non-negative weights: mini-batches then draw transitions with replacement, env b's with probability
+        ∝ priority[b] (prioritised sampling of failing pairs); None restores the uniform shuffled pass."""
+        if priority is None:
+            self.env_priority = None
+            return
+        w = _t(priority, self.device, torch.float64)
+        if w.shape != (self.B,) or not torch.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
+            raise ValueError(f"env priorities must be {self.B} finite non-negative weights, not all zero")
+        self.env_priority = w
+
     def mini_batches(self, num_mini_batches: int, normalize_advantages: bool = True) -> Iterator[MiniBatch]:
-        """One shuffled pass over the T·B transitions in ``num_mini_batches`` batches (seeded generator)."""
+        """One shuffled pass over the T·B transitions in ``num_mini_batches`` batches (seeded generator); with
+        env priorities, T·B draws with replacement, weighted by the env's priority."""
         if not self.has_returns:
             raise RuntimeError("call compute_returns() before sampling mini-batches")
         n = self.T * self.B
@@ -131,7 +144,10 @@ class RolloutStorage:
         adv = self.advantages.flatten()
         if normalize_advantages:
             adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-        perm = torch.randperm(n, generator=self.generator).to(self.device)
+        if self.env_priority is None:
+            perm = torch.randperm(n, generator=self.generator).to(self.device)
+        else:  # flat index t·B + b carries env b's weight
+            perm = torch.multinomial(self.env_priority.repeat(self.T), n, replacement=True, generator=self.generator)
         flat = lambda x: x.reshape(n, *x.shape[2:])  # noqa: E731
         for i in range(num_mini_batches):
             idx = perm[i * size:(i + 1) * size]

@@ -156,6 +156,11 @@ class GraspEnv:
         return observe.node_positions(xpos[:, :N], xmat[:, :N], self.node_point), palm_pos, palm_link_rot @ self.palm_axes
 
     @property
+    def pair_names(self) -> list[str]:
+        """'hand/object' of every slot (B,), the key of episode records' hand and object."""
+        return [f"{s.spec.name}/{s.obj.name}" for s in self.slots]
+
+    @property
     def action_dim(self) -> int:
         return self.cfg.contract.action.dim(self.N)
 
