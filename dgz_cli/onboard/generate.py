@@ -175,14 +175,10 @@ def _closing_range(sign: int, rng: np.random.Generator, span: float = 1.5) -> tu
     return (lo, hi) if sign > 0 else (-hi, -lo)
 
 
-def _node_types(n_nodes: int) -> list[str]:
-    return TYPES_BY_COUNT[n_nodes]
-
-
 def _finger_chain(b: _Builder, rng, fname: str, base: np.ndarray, direction: np.ndarray, close_dir: np.ndarray,
                   lengths: list[float], flex_signs: list[int], abd: tuple[np.ndarray, int] | None,
                   mimic_last: bool, radius: float, labels: list[dict], cls: Optional[str],
-                  rot: tuple[int] | None = None, prismatic: bool = False) -> None:
+                  rot: tuple[np.ndarray, int] | None = None) -> None:
     """One digit along ``direction`` from ``base`` (H coords), flexing toward ``close_dir``.
 
     flex_signs[k] = +1: the k-th flexion joint's + direction closes. ``abd`` = (geometric +direction axis,
@@ -191,7 +187,6 @@ def _finger_chain(b: _Builder, rng, fname: str, base: np.ndarray, direction: np.
     flex_axis = _unit(np.cross(d, close_dir))  # rotation about it moves the tip toward close_dir
     parent, parent_pos = "palm", np.zeros(3)
     pos = base.copy()
-    node = 0
     root_joints: list[tuple[str, np.ndarray, str, int]] = []  # (name, axis, primitive, sign) at the base
     if rot is not None:
         root_joints.append((f"{fname}_rot", rot[0], "ROT", rot[1]))
@@ -208,23 +203,19 @@ def _finger_chain(b: _Builder, rng, fname: str, base: np.ndarray, direction: np.
         parent, parent_pos = child, pos.copy()
         root_rows.append(dict(joint=jname, finger=fname, finger_class=cls, node=0, primitive=prim, sign=sign))
     n_flex = len(flex_signs)
-    types = _node_types(n_flex)
+    types = TYPES_BY_COUNT[n_flex]
     for k, (length, s) in enumerate(zip(lengths, flex_signs)):
         jname, child = f"{fname}_j{k + 1}", f"{fname}_p{k + 1}"
         end = d * length
         b.link(child, [b.segment(np.zeros(3), end, radius * (0.85 ** k), b.style())])
-        if prismatic:
-            axis = s * _unit(close_dir)
-            limits = (0.0, 0.04) if rng.random() < 0.5 else (-0.04, 0.0)
-        else:
-            axis = s * flex_axis
-            limits = _closing_range(s, rng)
+        axis = s * flex_axis
+        limits = _closing_range(s, rng)
         is_mimic = mimic_last and k == n_flex - 1 and k > 0
         mimic = None
         if is_mimic:
             prev_sign = flex_signs[k - 1]
             mimic = (f"{fname}_j{k}", float(rng.uniform(0.6, 1.0)) * s * prev_sign)
-        b.joint(jname, "prismatic" if prismatic else "revolute", parent, child, pos - parent_pos, axis, limits, mimic)
+        b.joint(jname, "revolute", parent, child, pos - parent_pos, axis, limits, mimic)
         if not is_mimic:
             labels.append(dict(joint=jname, finger=fname, finger_class=cls, node=k, node_type=types[k],
                                primitive="FLEX", sign=s))
