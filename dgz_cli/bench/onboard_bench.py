@@ -1,7 +1,10 @@
-"""`dgz bench onboard`: wall time of each onboarding stage per shipped hand (median of N runs)."""
+"""`dgz bench onboard`: wall time of each onboarding stage per shipped hand (median of N runs); with
+``--process``, the wall time of a whole `dgz onboard` process as a user sees it from the shell; with
+``--generated N``, onboarding's agreement and refusal rates over N generated hands."""
 
 from __future__ import annotations
 
+import os
 import platform
 import resource
 import statistics
@@ -54,3 +57,97 @@ def run(hands: list[str] | None, repeat: int, asset_root: str | None) -> dict:
                 throughput_hands_per_s=round(len(rows) / total, 3) if total else None,
                 latency_max_s=max((r["onboard_s"] for r in rows.values()), default=None),
                 peak_rss_mb=round(peak_mb, 1))
+
+
+def generated(count: int, seed: int, variants_of: str | None = None, asset_root: str | None = None) -> dict:
+    """Agreement with the ground truth over ``count`` generated hands (or variants of one hand), as
+    `dgz hands check` computes it (:mod:`dgz_cli.onboard.agreement`)."""
+    from dgz_cli.onboard.agreement import check_dir, summary
+    from dgz_cli.onboard.generate import KINDS, write_hands
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="dgz-bench-generated-") as tmp:
+        if variants_of is None:
+            write_hands(Path(tmp), seed, count)
+        else:
+            from dgz_cli.onboard.variants import write_variants
+            from dgz_cli.spec.catalog import asset_root as resolve_root
+            from dgz_cli.spec.catalog import resolve_spec, resolve_urdf
+            from dgz_cli.spec.io import load_spec
+
+            spec = load_spec(resolve_spec(variants_of))
+            write_variants(spec, resolve_urdf(spec.provenance.urdf, resolve_root(asset_root)), Path(tmp), seed, count)
+        result = summary(check_dir(Path(tmp)))
+    return dict(benchmark="onboard-generated", seed=seed, kinds=list(KINDS) if variants_of is None else None,
+                variants_of=variants_of, **result, total_s=round(time.perf_counter() - t0, 2),
+                load_average=[round(x, 2) for x in os.getloadavg()],
+                machine=platform.processor() or platform.machine(), python=platform.python_version())
+
+
+def _import_seconds(stderr: str) -> float:
+    """Sum of the top-level cumulative times that ``python -X importtime`` printed (the process's imports)."""
+    total = 0
+    for line in stderr.splitlines():
+        if not line.startswith("import time:") or "|" not in line:
+            continue
+        _, cumulative, name = line.split("|", 2)
+        if name.startswith(" ") and not name.startswith("  ") and cumulative.strip().isdigit():
+            total += int(cumulative)
+    return total / 1e6
+
+
+def _child_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def process(hands: list[str] | None, repeat: int, asset_root: str | None) -> dict:
+    """Each shipped hand onboarded by a fresh `dgz onboard URDF -o TMP` process (``python -m dgz_cli.cli.app``,
+    what the console script runs): wall time from spawn to exit (median of ``repeat``), the process's CPU
+    time, and, from one more run under ``-X importtime``, the time its imports took inside the process."""
+    import subprocess
+    import sys
+
+    from dgz_cli.spec.catalog import asset_root as resolve_root
+    from dgz_cli.spec.catalog import hand_dir, resolve_spec, resolve_urdf, shipped_hands
+    from dgz_cli.spec.io import load_spec
+
+    names = hands or shipped_hands()
+    root = resolve_root(asset_root)
+    env = dict(os.environ, **({"DGZ_ASSET_ROOT": str(root)} if root else {}))
+    cmd0 = [sys.executable, "-m", "dgz_cli.cli.app", "onboard"]
+    load_before = os.getloadavg()
+
+    def spawn(argv: list[str]) -> tuple[float, float, subprocess.CompletedProcess]:
+        c0, t0 = _child_cpu(), time.perf_counter()
+        done = subprocess.run(argv, capture_output=True, text=True, env=env)
+        return time.perf_counter() - t0, _child_cpu() - c0, done
+
+    rows = {}
+    t_start = time.perf_counter()
+    baseline = statistics.median(spawn([sys.executable, "-c", "pass"])[0] for _ in range(repeat))
+    with tempfile.TemporaryDirectory(prefix="dgz-bench-onboard-") as tmp:
+        for name in names:
+            spec = load_spec(resolve_spec(name))
+            urdf = resolve_urdf(spec.provenance.urdf, asset_root)
+            args = [str(urdf), "-o", str(Path(tmp) / f"{name}.yaml"), "--name", name]
+            args += [f"--xacro-arg={k}={v}" for k, v in spec.provenance.xacro_args.items()]
+            overrides = hand_dir(name) / "overrides.yaml"
+            if overrides.is_file():
+                args += ["--overrides", str(overrides)]
+            runs = [spawn(cmd0 + args) for _ in range(repeat)]
+            if any(r[2].returncode != 0 for r in runs):
+                bad = next(r[2] for r in runs if r[2].returncode != 0)
+                raise RuntimeError(f"dgz onboard {name} failed: {bad.stderr.strip()[-300:]}")
+            *_, traced = spawn([sys.executable, "-X", "importtime"] + cmd0[1:] + args)
+            rows[name] = dict(wall_s=round(statistics.median(r[0] for r in runs), 3),
+                              cpu_s=round(statistics.median(r[1] for r in runs), 3),
+                              import_s=round(_import_seconds(traced.stderr), 3))
+    walls = [r["wall_s"] for r in rows.values()]
+    return dict(benchmark="onboard-process", repeat=repeat, command=" ".join(cmd0[1:]) + " URDF -o TMP",
+                hands=rows, wall_max_s=max(walls, default=None), target_s=0.5,
+                target_met=bool(walls) and max(walls) <= 0.5, python_startup_s=round(baseline, 3),
+                load_average_before=[round(x, 2) for x in load_before],
+                load_average_after=[round(x, 2) for x in os.getloadavg()],
+                total_s=round(time.perf_counter() - t_start, 1), cpus=os.cpu_count(),
+                machine=platform.processor() or platform.machine(), python=platform.python_version())

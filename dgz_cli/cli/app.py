@@ -391,10 +391,36 @@ def bench_onboard(
     repeat: int = typer.Option(3, "--repeat", min=1, help="runs per hand; the median is reported"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
     as_json: bool = typer.Option(False, "--json", help="print only the JSON"),
+    process: bool = typer.Option(False, "--process", help="time whole `dgz onboard URDF -o TMP` processes as from "
+                                 "the shell: per hand wall time (median of --repeat), CPU time and import time"),
+    generated: Optional[int] = typer.Option(None, "--generated", min=1, max=100000, help="instead: agreement and "
+                                            "refusal rates of onboarding over N generated hands (as `dgz hands check`)"),
+    seed: int = typer.Option(0, "--seed", help="with --generated: seed of the generated hands"),
+    variants_of: Optional[str] = typer.Option(None, "--variants-of", help="with --generated: variants of this hand "
+                                              "instead of random hands"),
 ) -> None:
-    """Wall time per shipped hand for parse, compile, excite and write (one core)."""
+    """Wall time per shipped hand for parse, compile, excite and write (one core); --process: whole processes;
+    --generated N: agreement with the ground truth of generated hands."""
     from dgz_cli.bench import onboard_bench
 
+    if generated is not None:
+        result = onboard_bench.generated(generated, seed, variants_of, asset_root)
+        if not as_json:
+            out.print(f"{result['hands']} hands: agreement {result['agreement']:.1%}, refusal rate "
+                      f"{result['refusal_rate']:.1%}, {result['wrong']} wrong but lint-clean, "
+                      f"{result['false_refusal']} correct but refused, {result['truth_refused']} ground truths refused")
+        sys.stdout.write(json.dumps(result, indent=2) + "\n")
+        return
+    if process:
+        result = onboard_bench.process([h for h in (hands or "").split(",") if h] or None, repeat, asset_root)
+        if not as_json:
+            for name, r in result["hands"].items():
+                out.print(f"{name}: {r['wall_s']:.2f} s wall, {r['cpu_s']:.2f} s CPU, imports {r['import_s']:.2f} s",
+                          highlight=False, markup=False)
+            out.print(f"slowest {result['wall_max_s']} s (target 0.5 s: {'met' if result['target_met'] else 'not met'}), "
+                      f"load average {result['load_average_before']}", highlight=False, markup=False)
+        sys.stdout.write(json.dumps(result, indent=2) + "\n")
+        return
     result = onboard_bench.run([h for h in (hands or "").split(",") if h] or None, repeat, asset_root)
     if not as_json:
         from rich.markup import escape
@@ -412,6 +438,10 @@ def bench_onboard(
 
 
 def main() -> None:
+    import os
+
+    if sys.argv[1:2] == ["onboard"] and "MUJOCO_GL" not in os.environ:
+        os.environ["MUJOCO_GL"] = "disable"  # a process that only onboards never renders: MuJoCo loads no GL library
     try:
         code = app(standalone_mode=False)  # in this mode typer returns the code of `raise typer.Exit(code)`
         if isinstance(code, int) and code != 0:

@@ -45,7 +45,24 @@ def generate(
     count: int = typer.Option(10, "--count", min=1, max=100000, help="number of hands"),
     out_dir: Path = typer.Option(..., "-o", "--out", help="folder to write NAME.urdf + NAME.labels.json into"),
     kinds: str = typer.Option("hand,claw,opposed,jaw", "--kinds", help=KINDS_HELP),
+    variants_of: Optional[str] = typer.Option(None, "--variants-of", help="instead of random hands, write variants "
+                                              "of this hand (shipped name or spec file): every finger's links scaled "
+                                              "×0.6–1.6, a fingertip joint or a finger removed at random, as GET-Zero's "
+                                              "LEAP variants; labels from the base spec and the construction"),
+    asset_root: Optional[str] = typer.Option(None, "--asset-root", help="folder holding hands/ and objects/ "
+                                             "(default: $DGZ_ASSET_ROOT); for --variants-of"),
 ) -> None:
+    if variants_of is not None:
+        from dgz_cli.onboard.variants import write_variants
+        from dgz_cli.spec.catalog import asset_root as resolve_root
+        from dgz_cli.spec.catalog import resolve_spec, resolve_urdf
+        from dgz_cli.spec.io import load_spec
+
+        spec = load_spec(resolve_spec(variants_of))
+        urdf = resolve_urdf(spec.provenance.urdf, resolve_root(asset_root))
+        paths = write_variants(spec, urdf, _out_dir(out_dir), seed, count)
+        _out.print(f"wrote {len(paths)} variants of {escape(spec.name)} (URDF + labels JSON) to {escape(str(out_dir))}")
+        return
     from dgz_cli.onboard.generate import write_hands
 
     paths = write_hands(_out_dir(out_dir), seed, count, _kinds(kinds))

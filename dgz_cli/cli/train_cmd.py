@@ -43,6 +43,30 @@ def _load_config(given: dict, config_file: Path | None, out: Path, resume: bool)
                        "see `dgz train --help` and docs/training.md") from None
 
 
+def hand_specs(hands, asset_root: str | None) -> dict[str, Path]:
+    """``--hands`` entries → spec paths by hand name: shipped names and spec paths as they are, and
+    ``generated:DIR`` as every hand in DIR (onboarded there unless a current spec is already beside it)."""
+    from dgz_cli.onboard.folder import PREFIX, onboard_folder
+    from dgz_cli.spec.catalog import asset_root as resolve_root
+    from dgz_cli.spec.catalog import hand_name, resolve_spec
+    from dgz_cli.spec.errors import DgzError
+
+    out: dict[str, Path] = {}
+    for h in hands:
+        if h.startswith(PREFIX):
+            folder = Path(h[len(PREFIX):]).expanduser()
+            paths = onboard_folder(folder, resolve_root(asset_root), h)
+        else:
+            paths = [resolve_spec(h)]
+        for p in paths:
+            name = hand_name(p) if h.startswith(PREFIX) else h
+            if name in out:
+                raise DgzError(f"--hands: hand '{name}' is named twice ({out[name]} and {p})",
+                               "train on each hand once; rename one of the URDFs")
+            out[name] = p
+    return out
+
+
 def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None, on_warm_start=None):
     """The composition root of training: specs, objects and the env from ``cfg`` (a TrainConfig), then the
     Trainer that receives them. Bad input fails here, before anything is written."""
@@ -52,13 +76,12 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     from dgz_cli.sim.env import GraspEnv
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.sim.scripted import ScriptedGrasp
-    from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.errors import DgzError
     from dgz_cli.spec.io import load_spec
 
     if cfg.preset not in PRESETS:
         raise DgzError(f"--preset '{cfg.preset}' is not a MAGCN preset", f"choose one of: {', '.join(sorted(PRESETS))}")
-    spec_paths = {h: resolve_spec(h) for h in cfg.hands}
+    spec_paths = hand_specs(cfg.hands, asset_root)
     specs = [load_spec(p) for p in spec_paths.values()]
     objs = resolve_objects(cfg.objects, asset_root)
     pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
