@@ -150,3 +150,17 @@ def test_deploy_scripted_never_imports_torch():
     # the probe can fail: a trained policy does bring torch in
     code = code.replace("'scripted'", "'dgz-cpu-warmstart'")
     assert "torch" in _modules_after(code)
+
+
+def test_onboard_imports_only_what_onboarding_needs(tmp_path):
+    """`dgz onboard` (issue 13's wall time from the shell): no torch, SciPy, trimesh, yourdfpy or matplotlib, and
+    no training code on its path."""
+    urdf = PACKAGE / "data" / "hands" / "dgz_tri.urdf"
+    loaded = _modules_after(
+        "import sys\nfrom dgz_cli.cli.app import app\ntry:\n"
+        f"    app(['onboard', {str(urdf)!r}, '-o', {str(tmp_path / 'tri.yaml')!r}], standalone_mode=False)\n"
+        "except SystemExit:\n    pass\n"
+        f"assert __import__('pathlib').Path({str(tmp_path / 'tri.yaml')!r}).is_file()")
+    heavy = {"torch", "scipy", "trimesh", "yourdfpy", "matplotlib", "tensorboard"}
+    assert not loaded & heavy, sorted(loaded & heavy)
+    assert {"mujoco", "typer", "rich"} <= loaded  # the probe ran the real command

@@ -134,8 +134,10 @@ def analyse(kin: Kinematics, poser: Poser, palm_link: str | None = None) -> Stru
         last = kin.joints[joints[-1]]
         group = rigid_group(kin, last.child)
         anchor = poser.joint_anchor(last.name)
-        cands = [poser.link_pos(l) for l in group] + list(poser.geom_points(group))
-        tip = max(cands, key=lambda p: float(np.linalg.norm(p - anchor)))
+        cands = np.vstack([np.reshape([poser.link_pos(l) for l in group], (-1, 3)),
+                           np.reshape(poser.geom_points(group), (-1, 3))])
+        d = cands - anchor
+        tip = cands[int(np.argmax(np.sqrt(np.einsum("ij,ij->i", d, d))))]  # the first farthest, as max() picked
         local = poser.link_rot(last.child).T @ (tip - poser.link_pos(last.child))
         out.append(Chain(tuple(joints), last.child, np.round(local, 6)))
     return Structure(palm, tuple(rigid_group(kin, palm)), tuple(wrist), tuple(excluded), tuple(shared), tuple(out))
