@@ -215,3 +215,16 @@ def test_hardware_view_env_gives_the_teacher_its_observation_and_the_student_har
     assert 1e-4 < err < 0.05  # noisy readings, / π
     for e in (plain, clean, hw):
         e.close()
+
+
+def test_the_shipped_student_is_deploys_default():
+    """`dgz deploy`'s --policy default is the shipped student, which declares no privileged input."""
+    import inspect
+
+    from dgz_cli.cli.app import deploy
+    from dgz_cli.rl.checkpoint import read_meta, resolve_checkpoint
+
+    default = inspect.signature(deploy).parameters["policy"].default.default
+    meta = read_meta(resolve_checkpoint(default))
+    assert default == "dgz-cpu-student" and meta.format == 3 and meta.privileged_inputs == ()
+    assert meta.student.teacher_path == "dgz-cpu-warmstart"

@@ -318,10 +318,11 @@ def deploy(
                                        "sim (the evaluation scene in MuJoCo, see --sim-hand/--sim-object/--seed)"),
     port: Optional[str] = typer.Option(None, "--port", help="serial port (prefer /dev/serial/by-id/...), or sim "
                                        "(this hand's spec in the MuJoCo evaluation scene)"),
-    policy: str = typer.Option("scripted", "--policy",
-                               help="'scripted' (the spec-only scripted grasp of `dgz eval`; needs the object), "
-                                    "'close' (blind close, no object needed), a trained checkpoint folder or a name "
-                                    "under policies/ (e.g. dgz-cpu-warmstart), or package.module:factory"),
+    policy: str = typer.Option("dgz-cpu-student", "--policy",
+                               help="the shipped student dgz-cpu-student (default: distilled, no contact/force "
+                                    "input; needs the object), 'scripted' (the spec-only scripted grasp of `dgz "
+                                    "eval`; needs the object), 'close' (blind close, no object needed), a trained "
+                                    "checkpoint folder or a name under policies/, or package.module:factory"),
     object_points: Optional[Path] = typer.Option(None, "--object-points",
                                                  help="object point cloud: .npy (P, 3) or 'x y z' lines, metres, "
                                                       "palm frame (f, l, n) at the start pose; or sphere, box, "
