@@ -121,3 +121,15 @@ def test_hands_check_still_reads_a_generated_folder(tmp_path, capsys):
         assert exc.code == 0
     out = capsys.readouterr().out
     assert json.loads(out[out.index("{"):])["hands"] == 3
+
+
+def test_bench_onboard_process_times_a_whole_dgz_onboard(capsys):
+    """`dgz bench onboard --process`: a fresh `dgz onboard` process per hand, timed from spawn to exit."""
+    from dgz_cli.cli.app import app
+
+    app(["bench", "onboard", "--process", "--hands", "dgz_tri", "--repeat", "1", "--json"], standalone_mode=False)
+    result = json.loads(capsys.readouterr().out)
+    row = result["hands"]["dgz_tri"]
+    assert set(result["hands"]) == {"dgz_tri"} and 0 < row["import_s"] and 0 < row["cpu_s"] and 0 < row["wall_s"]
+    assert row["wall_s"] > result["python_startup_s"]  # the onboarding process does more than start Python
+    assert result["target_met"] == (result["wall_max_s"] <= 0.5) and len(result["load_average_before"]) == 3
