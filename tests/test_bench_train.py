@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from typer.testing import CliRunner
 
 from dgz_cli.cli.app import app
@@ -15,9 +17,8 @@ def test_bench_train_reports_throughput_split_and_profile():
     assert res.exit_code == 0, res.output
     r = json.loads(res.stdout[res.stdout.index("{"):])
     assert r["envs"] == 2 and r["transitions"] == 2 * 4 * 1
-    assert r["transitions_per_s"] == round(r["transitions"] / r["wall_s"], 1) or abs(
-        r["transitions_per_s"] - r["transitions"] / r["wall_s"]) < 0.2
-    assert all(v > 0 for v in r["split_s"].values())
+    assert r["transitions_per_s"] == pytest.approx(r["transitions"] / r["wall_s"], rel=0.05)  # wall_s is rounded
+    assert r["split_s"]["physics_s"] > 0 and r["split_s"]["ppo_update_s"] > 0 and min(r["split_s"].values()) >= 0
     assert 0.5 < sum(r["split_fraction"].values()) <= 1.01  # the four parts are most of the wall clock, never more
     mj = r["mujoco"]
     assert mj["physics_steps"] == 2 * 5 * 20  # 2 slots × 5 control steps × 20 substeps (400 Hz / 20 Hz)

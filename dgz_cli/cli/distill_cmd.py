@@ -49,7 +49,8 @@ def _load_config(given: dict, out: Path, resume: bool):
 def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None):
     """Teacher, specs, objects and the hardware-view env from ``cfg`` (a DistillConfig), then the Distiller.
     Bad input fails here, before anything is written."""
-    from dgz_cli.rl.checkpoint import POLICIES_DIR, LoadedPolicy, resolve_checkpoint, spec_hash
+    from dgz_cli.rl.checkpoint import LoadedPolicy, resolve_checkpoint, spec_hash
+    from dgz_cli.spec.catalog import policies_dir
     from dgz_cli.rl.distill import Distiller
     from dgz_cli.sim.hardware import HardwareViewEnv
     from dgz_cli.sim.objects import resolve_objects
@@ -74,7 +75,7 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     env = HardwareViewEnv(pairs, env_cfg, cfg.view, teacher_layout=tmeta.contract.observation, seed=cfg.seed,
                           asset_root=asset_root, threads=cfg.threads, use_pen=tmeta.train.ablation != "no_mask")
     try:
-        shipped = Path(directory).resolve().parent == POLICIES_DIR.resolve()
+        shipped = Path(directory).resolve().parent == policies_dir().resolve()
         return Distiller(cfg, env, teacher.model, tmeta, cfg.teacher if shipped else str(directory), out,
                          {s.name: spec_hash(p) for s, p in zip(specs, spec_paths.values())}, resume=resume, log=log)
     except BaseException:

@@ -136,16 +136,16 @@ def git_revision(repo: Path | None = None) -> str | None:
     return out.stdout.strip() + ("-dirty" if dirty.returncode == 0 and dirty.stdout.strip() else "")
 
 
-POLICIES_DIR = Path(__file__).resolve().parents[2] / "policies"
-
-
 def resolve_checkpoint(ref: str) -> Path | None:
-    """A checkpoint folder path, or the name of a folder under ``policies/``; None when neither exists."""
+    """A checkpoint folder path, or the name of a shipped policy (``policies/`` of the checkout or the wheel's
+    package data); None when neither exists."""
+    from dgz_cli.spec.catalog import policies_dir
+
     path = Path(ref)
     if path.is_dir():
         return path
-    if "/" not in ref and ref not in (".", "..") and (POLICIES_DIR / ref).is_dir():
-        return POLICIES_DIR / ref
+    if "/" not in ref and ref not in (".", "..") and (policies_dir() / ref).is_dir():
+        return policies_dir() / ref
     return None
 
 
