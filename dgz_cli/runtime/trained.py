@@ -10,7 +10,9 @@ Privileged inputs: observation blocks a real hand lacks (``contact``, ``force``;
 its layout holds). Such a policy is refused on hardware unless explicitly allowed; then those inputs are
 fed as zeros. On the MuJoCo backend the simulator provides them.
 
-The policy acts deterministically (the Gaussian's mean).
+The policy acts deterministically (the Gaussian's mean). A distilled student (``dgz distill``, checkpoint
+format 3) has no privileged input and keeps a history of its last steps; :meth:`TrainedPolicy.reset`, which
+the control loop calls before the episode, clears it.
 """
 
 from __future__ import annotations
