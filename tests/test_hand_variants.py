@@ -133,3 +133,24 @@ def test_bench_onboard_process_times_a_whole_dgz_onboard(capsys):
     assert set(result["hands"]) == {"dgz_tri"} and 0 < row["import_s"] and 0 < row["cpu_s"] and 0 < row["wall_s"]
     assert row["wall_s"] > result["python_startup_s"]  # the onboarding process does more than start Python
     assert result["target_met"] == (result["wall_max_s"] <= 0.5) and len(result["load_average_before"]) == 3
+
+
+@pytest.mark.skipif(__import__("conftest").asset_root() is None,
+                    reason="DGZ_ASSET_ROOT not set: vendor hand assets unavailable (CI sets it)")
+@pytest.mark.parametrize("hand,index", [("leap", 4), ("leap", 9), ("leap", 16), ("allegro", 2), ("schunk_svh", 0)])
+def test_variants_with_a_long_thumb_keep_the_thumb_rot_sign(tmp_path, hand, index):
+    """Seed 0 variants whose thumb grew long relative to the index finger: the old rule (gap change relative to the
+    gap) flipped their thumb ROT sign or left it undecided; the gap change per unit of tip travel does not."""
+    from conftest import asset_root
+    from dgz_cli.onboard.agreement import check_one
+    from dgz_cli.onboard.variants import _Base, make_variant
+
+    spec = load_spec(resolve_spec(hand))
+    base = _Base(spec, resolve_urdf(spec.provenance.urdf, str(asset_root())), dict(spec.provenance.xacro_args))
+    name = f"{hand}_v0_{index:04d}"
+    text, labels = make_variant(base, 0, index, name)
+    (tmp_path / f"{name}.urdf").write_text(text)
+    rot = [x for x in labels.joints if x.primitive == "ROT"]
+    assert rot, "the variant keeps its thumb ROT joint"
+    result = check_one(tmp_path / f"{name}.urdf", labels, truth_lint=False)
+    assert result.outcome == "agree", result.mismatches or result.error

@@ -36,6 +36,7 @@ from dgz_cli.onboard.urdf import Kinematics
 from dgz_cli.spec.kinematics import rest_pose
 
 PRIMITIVES = ("FLEX", "ABD", "ROT")
+ROT_SWEEP_WEAK = 0.062  # thumb ROT: a gap change below this per unit of tip travel leaves the sign undecided
 THUMB_WEAK = 0.3  # a thumb motion whose component toward the opposed fingertip is below this is judged by +n
 
 
@@ -306,17 +307,21 @@ class Exciter:
         j = self.kin.joints[joint]
         if not j.actuated:
             return None
-        gaps = {}
+        gaps, ends = {}, {}
         for s in (1, -1):
             q_flex = self._flexed_pose(joint, first)
             if q_flex is None:
                 return None
             q_flex[joint] = float(np.clip(q_flex[joint] + s * 0.3, j.lower, j.upper))
             self.poser.pose(q_flex)
-            own = tip_positions(self.poser, self.st)[self.finger_of[joint]]
-            gaps[s] = float(np.linalg.norm(own - self._opposed_target()))
+            ends[s] = tip_positions(self.poser, self.st)[self.finger_of[joint]]
+            gaps[s] = float(np.linalg.norm(ends[s] - self._opposed_target()))
         sign = 1 if gaps[1] < gaps[-1] else -1
-        strength = min(1.0, abs(gaps[1] - gaps[-1]) / max(gaps[1], gaps[-1], 1e-9) * 10)
+        # how much of the tip's sweep closes the gap: the change of the gap per unit of tip travel. Relative to the
+        # tip's own travel, not to the gap, so it does not shrink when the thumb (or its gap) grows: a thumb whose
+        # sweep passes the opposed tip tangentially changes the gap little per unit of travel, whatever its length
+        travel = float(np.linalg.norm(ends[1] - ends[-1]))
+        strength = min(1.0, abs(gaps[1] - gaps[-1]) / max(travel, 1e-9) * (0.1 / ROT_SWEEP_WEAK))
         if strength < 0.1:  # no clear winner: the wider side of the range is the functional one (flagged)
             rest = float(rest_pose(j.lower, j.upper))
             sign = 1 if (j.upper - rest) >= (rest - j.lower) else -1
