@@ -5,7 +5,6 @@ and SIGTERM/SIGHUP behave as in ``dgz train`` (:mod:`dgz_cli.cli.train_cmd`)."""
 
 from __future__ import annotations
 
-import signal
 from pathlib import Path
 
 from rich.console import Console
@@ -84,32 +83,16 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
 
 
 def run(given: dict, out: Path, resume: bool, asset_root: str | None, console: Console) -> int:
-    from torch.utils.tensorboard import SummaryWriter
-
-    from dgz_cli.cli.train_cmd import _check_out, _clean_failed_run, _mtime
+    from dgz_cli.cli.train_cmd import _check_out, log_scalars, open_run, run_until_stopped
     from dgz_cli.rl.runner import write_csv, write_curve
 
     existed = _check_out(out)
     cfg = _load_config(dict(given), out, resume)
     dist = build(cfg, out, asset_root, resume, log=lambda row: log(row))
-    tb_before = set((out / "tb").glob("*")) if (out / "tb").is_dir() else set()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        writer = SummaryWriter(log_dir=str(out / "tb"))
-    except OSError as exc:
-        dist.env.close()
-        if not existed:
-            _clean_failed_run(out, existed, tb_before)
-        from dgz_cli.spec.errors import DgzError
-
-        raise DgzError(f"--out {out}: cannot create the run folder ({exc.strerror or exc})",
-                       "choose a writable --out folder") from None
+    writer, tb_before = open_run(out, existed, dist.env)
 
     def log(row: dict) -> None:
-        for k, v in row.items():
-            if isinstance(v, (int, float)) and v is not None and k != "iteration":
-                writer.add_scalar(k, v, row["iteration"])
-        writer.flush()
+        log_scalars(writer, row)
         sr = "—" if row["success_rate"] is None else f"{row['success_rate']:.3f}"
         if row["dagger"]:
             what = (f"DAgger  imitation MSE {row['imitation_mse']:.4f}  fit {row['bc_loss_first_epoch']:.4f} → "
@@ -129,30 +112,10 @@ def run(given: dict, out: Path, resume: bool, asset_root: str | None, console: C
                   f"{dist.env.B} envs, {cfg.steps_per_env} steps per DAgger iteration, from iteration {dist.iteration}; "
                   f"hardware view: {escape(cfg.view.describe())}; from the teacher: {init.get('copied', 0)} tensors "
                   f"copied, {init.get('partial', 0)} partly, {init.get('fresh', 0)} new", highlight=False)
-    stop_signals = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
-    previous = {s: signal.getsignal(s) for s in stop_signals}
-
-    def _stop(*_) -> None:
-        raise KeyboardInterrupt
-
-    for s in stop_signals:
-        signal.signal(s, _stop)
-    saved = _mtime(out / "checkpoint.yaml")
-    try:
-        dist.run()
-    except KeyboardInterrupt:
+    if not run_until_stopped(dist.run, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {dist.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")
         return 130
-    except BaseException:
-        writer.close()
-        if _mtime(out / "checkpoint.yaml") == saved:
-            _clean_failed_run(out, existed, tb_before)
-        raise
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler if handler is not None else signal.SIG_DFL)
-        writer.close()
     console.print(f"[green]wrote[/] {escape(str(out))} ({dist.iteration} iterations); evaluate it with "
                   f"`dgz eval --policy {escape(str(out))} --hand ...`", highlight=False)
     return 0

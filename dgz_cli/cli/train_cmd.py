@@ -138,31 +138,15 @@ def _mtime(path: Path):
 
 
 def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_root: str | None, console: Console) -> int:
-    from torch.utils.tensorboard import SummaryWriter
-
     from dgz_cli.rl.runner import write_csv, write_curve
 
     existed = _check_out(out)
     cfg = _load_config(given, config_file, out, resume)
     trainer = build(cfg, out, asset_root, resume, log=lambda row: log(row), on_warm_start=lambda stats: warm(stats))
-    tb_before = set((out / "tb").glob("*")) if (out / "tb").is_dir() else set()
-    try:  # only after build succeeded: a run refused on its input leaves nothing behind
-        out.mkdir(parents=True, exist_ok=True)
-        writer = SummaryWriter(log_dir=str(out / "tb"))
-    except OSError as exc:
-        trainer.env.close()
-        if not existed:
-            _clean_failed_run(out, existed, tb_before)
-        from dgz_cli.spec.errors import DgzError
-
-        raise DgzError(f"--out {out}: cannot create the run folder ({exc.strerror or exc})",
-                       "choose a writable --out folder") from None
+    writer, tb_before = open_run(out, existed, trainer.env)  # only now: a run refused on its input leaves nothing
 
     def log(row: dict) -> None:
-        for k, v in row.items():
-            if isinstance(v, (int, float)) and v is not None and k != "iteration":
-                writer.add_scalar(k, v, row["iteration"])
-        writer.flush()
+        log_scalars(writer, row)
         sr = "—" if row["success_rate"] is None else f"{row['success_rate']:.3f}"
         terms = " ".join(f"{k[2:]} {v:.2f}" for k, v in row.items() if k.startswith("r_") and v is not None)
         console.print(f"it {row['iteration']:4d}/{cfg.iterations}  {row['steps_per_s']:7.0f} steps/s  success {sr}  "
@@ -182,30 +166,10 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
 
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
-    stop_signals = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
-    previous = {s: signal.getsignal(s) for s in stop_signals}
-
-    def _stop(*_) -> None:  # SIGTERM and SIGHUP (a closed terminal) save and exit like Ctrl-C
-        raise KeyboardInterrupt
-
-    for s in stop_signals:
-        signal.signal(s, _stop)
-    saved = _mtime(out / "checkpoint.yaml")
-    try:
-        trainer.train()
-    except KeyboardInterrupt:
+    if not run_until_stopped(trainer.train, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")
         return 130
-    except BaseException:
-        writer.close()
-        if _mtime(out / "checkpoint.yaml") == saved:  # failed before a checkpoint: leave nothing behind
-            _clean_failed_run(out, existed, tb_before)
-        raise
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler if handler is not None else signal.SIG_DFL)
-        writer.close()
     table = Table(title=f"{escape(str(out))}: {trainer.iteration} iterations")
     for col in ("iteration", "success_rate", "mean_return", "steps_per_s"):
         table.add_column(col)
@@ -215,6 +179,62 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
     console.print(table)
     return 0
 
+
+
+def open_run(out: Path, existed: bool, env):
+    """The run folder and its TensorBoard writer, created only once the run's input was accepted (``env``, the
+    built env, is closed if that fails). Returns (writer, the tb files that were there before)."""
+    from torch.utils.tensorboard import SummaryWriter
+
+    tb_before = set((out / "tb").glob("*")) if (out / "tb").is_dir() else set()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        return SummaryWriter(log_dir=str(out / "tb")), tb_before
+    except OSError as exc:
+        env.close()
+        if not existed:
+            _clean_failed_run(out, existed, tb_before)
+        from dgz_cli.spec.errors import DgzError
+
+        raise DgzError(f"--out {out}: cannot create the run folder ({exc.strerror or exc})",
+                       "choose a writable --out folder") from None
+
+
+def log_scalars(writer, row: dict) -> None:
+    """Every numeric field of a history row to TensorBoard at its iteration."""
+    for k, v in row.items():
+        if isinstance(v, (int, float)) and v is not None and k != "iteration":
+            writer.add_scalar(k, v, row["iteration"])
+    writer.flush()
+
+
+def run_until_stopped(job, out: Path, existed: bool, tb_before: set, writer) -> bool:
+    """Run ``job()`` with SIGTERM and SIGHUP (a closed terminal) raising KeyboardInterrupt like Ctrl-C; the job
+    saves on it. Returns False when interrupted. A job that fails before its first checkpoint leaves nothing
+    behind; the writer is closed and the previous signal handlers restored in every case."""
+    stop_signals = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
+    previous = {s: signal.getsignal(s) for s in stop_signals}
+
+    def _stop(*_) -> None:
+        raise KeyboardInterrupt
+
+    for s in stop_signals:
+        signal.signal(s, _stop)
+    saved = _mtime(out / "checkpoint.yaml")
+    try:
+        job()
+    except KeyboardInterrupt:
+        return False
+    except BaseException:
+        writer.close()
+        if _mtime(out / "checkpoint.yaml") == saved:  # failed before a checkpoint: leave nothing behind
+            _clean_failed_run(out, existed, tb_before)
+        raise
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+        writer.close()
+    return True
 
 def bench(given: dict, config_file: Path | None, iterations: int, asset_root: str | None) -> dict:
     """`dgz bench train`: the Trainer that `dgz train` would build from the same options, run for
