@@ -59,14 +59,13 @@ def measure(trainer, iterations: int) -> dict:
     import torch
 
     cfg, env = trainer.cfg, trainer.env
-    rows: list[dict] = []
-    trainer.log = rows.append
     t0 = time.perf_counter()
     try:
         obs = env.reset(cfg.seed)
         for _ in range(iterations):
-            obs = trainer._iteration(obs)
+            obs = trainer.iterate(obs)
         wall = time.perf_counter() - t0
+        rows = trainer.history[-iterations:]
         profile = mujoco_profile(env)
     finally:
         env.close()

@@ -245,5 +245,5 @@ def bench(given: dict, config_file: Path | None, iterations: int, asset_root: st
 
     with tempfile.TemporaryDirectory(prefix="dgz-bench-train-") as tmp:
         out = Path(tmp) / "run"
-        cfg = _load_config({**given, "iterations": iterations, "checkpoint_every": 10**6}, config_file, out, False)
+        cfg = _load_config({**given, "iterations": iterations}, config_file, out, False)
         return train_bench.measure(build(cfg, out, asset_root), iterations)

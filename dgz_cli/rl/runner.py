@@ -141,7 +141,7 @@ class Trainer:
                 self.behaviour_clone()
             obs = env.reset(cfg.seed + self.iteration)
             while self.iteration < cfg.iterations:
-                obs = self._iteration(obs)
+                obs = self.iterate(obs)
                 if self.iteration % cfg.checkpoint_every == 0 or self.iteration == cfg.iterations:
                     self.save()
         except KeyboardInterrupt:
@@ -190,7 +190,9 @@ class Trainer:
             self.pair_success[key] = float(e["success"]) if old is None else old + PAIR_EMA * (float(e["success"]) - old)
         return np.array([1.0 - self.pair_success.get(k, 0.0) + self.cfg.failure_priority for k in self.env.pair_names])
 
-    def _iteration(self, obs: dict) -> dict:
+    def iterate(self, obs: dict) -> dict:
+        """One PPO iteration from observation ``obs``: ``steps_per_env`` rollout steps in every env, then the
+        update; appends its row to ``history`` (and logs it) and returns the next observation. No checkpoint."""
         env, t0 = self.env, time.perf_counter()
         phys0, other0 = env.timing["physics_s"], env.timing["env_other_s"]
         forward_s = 0.0
