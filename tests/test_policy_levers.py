@@ -229,6 +229,34 @@ def test_closing_prior_by_hand_and_in_the_env():
     env.close()
 
 
+def test_residual_gains_scale_the_policy_not_the_prior():
+    c = ControlContract(observation=MARKOV, prior=ClosingPrior(enabled=True, close_step=0),
+                        action=ActionLayout(mask_actions=True, wrist_residual=0.0, finger_residual=0.25))
+    lay = c.observation
+    nodes = np.zeros((1, 2, lay.node_dim), np.float32)
+    nodes[:, 0, lay.node_col("node_type").start + 0] = 1.0  # node 0 is the wrist
+    glob = np.zeros((1, lay.global_dim), np.float32)
+    mask = np.array([[[1, 1, 0], [1, 1, 0]]], np.float32)
+    policy = np.array([[0.5, -0.5, 1, 1, 1, 1] + [0.4, 0.8, 0] + [-0.4, 0.8, 0]])
+    out = c.compose(policy, nodes, glob, mask, np.ones((1, 2), bool))
+    # wrist × 0; fingers × 0.25; the prior's +1 FLEX on node 1 (not the wrist node) is not scaled
+    np.testing.assert_allclose(out[0], [0] * 6 + [0.1, 0.2, 0] + [-0.1 + 1.0, 0.2, 0])
+    same = ControlContract(observation=MARKOV)
+    np.testing.assert_array_equal(same.compose(policy, nodes, glob, mask, np.ones((1, 2), bool)), policy)
+    # with wrist_residual 0 the wrist dims are not actions: never sampled, and the env's wrist follows the
+    # guidance alone (a wrist action of 1 moves nothing)
+    env = _env(EnvConfig(contract=c.model_copy(update=dict(observation=MARKOV))))
+    obs = to_tensors(env.reset())
+    m = MAGCN(TINY, c)
+    assert torch.all(m.sample(obs)["action"][:, :6] == 0)
+    palm0 = env.state()["palm_pos"].copy()
+    a = np.zeros((1, env.action_dim))
+    a[:, :3] = 1.0
+    env.step(a)
+    assert np.linalg.norm(env.state()["palm_pos"] - palm0) < 1e-3  # 1 cm per step if the wrist action acted
+    env.close()
+
+
 def test_early_stop_ends_hopeless_episodes_in_training_only():
     """early_stop: a hand that never touches the object ends its episode as a true terminal state at the end
     of the grasp phase (not the full 190 steps); eval's env builder turns the option off."""

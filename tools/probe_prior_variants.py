@@ -11,7 +11,7 @@ from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.sim.scripted import ScriptedGrasp
 from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ClosingPrior, ControlContract,
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior, ControlContract,
                                    ObservationLayout, WristGuidance)
 from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.spec.io import load_spec
@@ -30,10 +30,11 @@ VARIANTS = {
 }
 
 
-def run(spec, prior: ClosingPrior | None) -> dict:
-    contract = ControlContract(observation=LAYOUT, guidance=GUIDE, prior=prior or ClosingPrior())
+def run(spec, prior: ClosingPrior | None, action: ActionLayout | None = None, threads: int = 2) -> dict:
+    contract = ControlContract(observation=LAYOUT, guidance=GUIDE, prior=prior or ClosingPrior(),
+                               action=action or ActionLayout())
     env = GraspEnv([(spec, o) for o in resolve_objects(OBJS)] * 2, EnvConfig(contract=contract, roll="narrow"),
-                   threads=2)
+                   threads=threads)
     obs = env.reset(0)
     pol = ScriptedGrasp(env.N, env.grasp_offset, contract) if prior is None else None
     done = {}

@@ -25,12 +25,20 @@ def compiler_xml(kin: Kinematics) -> str:
 
 
 def compile_with_warnings(kin: Kinematics):
-    """Return (``mujoco.MjModel`` of the hand fixed to the world at its root link, compiler warnings)."""
+    """Return (``mujoco.MjModel`` of the hand fixed to the world at its root link, compiler warnings).
+
+    Onboarding only poses the hand and reads its geometry, so collisions are switched off (contype and
+    conaffinity 0, kept with ``discardvisual`` off): MuJoCo then skips the convex hulls of the collision
+    meshes, most of the compile time (LEAP: docs/benchmarks.md); mesh vertices and body frames are the same."""
     import mujoco
 
     with captured_mujoco_warnings() as warnings:
         try:
-            model = mujoco.MjModel.from_xml_string(compiler_xml(kin))
+            spec = mujoco.MjSpec.from_string(compiler_xml(kin))
+            spec.compiler.discardvisual = False
+            for geom in spec.geoms:
+                geom.contype, geom.conaffinity = 0, 0
+            model = spec.compile()
         except ValueError as exc:
             msg = " ".join(str(exc).split())
             raise UrdfError(f"{kin.source}: MuJoCo cannot compile this URDF: {msg}",

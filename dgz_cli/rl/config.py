@@ -76,6 +76,10 @@ class TrainConfig(BaseModel):
     prior_close_guide: float | None = Field(None, gt=0, le=0.3, description="m: the closing prior also closes once "
                                             "the guidance error is below this (contract prior.close_guide; None = off)")
     prior_close_step: int = Field(50, ge=0, description="control step from which the closing prior closes regardless")
+    wrist_residual: float = Field(1.0, ge=0, le=1, description="factor on the policy's wrist action (contract "
+                                  "action.wrist_residual; 0: the wrist follows the guidance and the lift alone)")
+    finger_residual: float = Field(1.0, ge=0, le=1, description="factor on the policy's finger actions before the "
+                                   "closing prior is added (contract action.finger_residual)")
     residual_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −mean a² over the "
                                    "policy's active action dims (its residual on the prior; 0 = off)")
     critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "

@@ -58,7 +58,9 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
               else ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS))
     contract = ControlContract(observation=layout,
                                action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
-                                                   mask_actions=cfg.mask_actions),
+                                                   mask_actions=cfg.mask_actions,
+                                                   wrist_residual=cfg.wrist_residual,
+                                                   finger_residual=cfg.finger_residual),
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
                                guidance=WristGuidance(gain=cfg.guidance_gain),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,

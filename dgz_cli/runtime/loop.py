@@ -208,7 +208,7 @@ class Runner:
             state = self._read()
             obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist, self.arm.palm_pose()))
             raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
-            cmd = safety.step(raw + self._prior(obs), q=None if state is None else state.q)
+            cmd = safety.step(self._compose(raw, obs), q=None if state is None else state.q)
             command = cmd.wrist + self._guidance(obs, phase)
             wrist = self.kf.update(command) if cfg.wrist_filter else command
             lift = ep.lift_per_step() if phase == "lift" else 0.0
@@ -221,12 +221,14 @@ class Runner:
                        target=cmd.target, measured=None if state is None else state.q,
                        effort=None if state is None else state.effort, limited=cmd.limited, **arm_log)
 
-    def _prior(self, obs) -> np.ndarray | float:
-        """The contract's closing prior (the policy's action is a residual on it), from the observation."""
+    def _compose(self, raw: np.ndarray, obs) -> np.ndarray:
+        """The command before the safety filter: the policy's action scaled by the contract's residual gains
+        plus its closing prior, from the observation — the simulator's computation (``ControlContract.compose``)."""
         c = self.cfg.contract
-        if not c.prior.enabled:
-            return 0.0
-        return c.prior_action(*(np.asarray(obs[k]) for k in ("nodes", "global", "mask", "node_valid")))[0]
+        if not c.prior.enabled and c.action.wrist_residual == 1.0 and c.action.finger_residual == 1.0:
+            return raw
+        obs_arrays = [np.asarray(obs[k]) for k in ("nodes", "global", "mask", "node_valid")]
+        return c.compose(raw[None], *obs_arrays)[0]
 
     def _guidance(self, obs, phase: str) -> np.ndarray:
         """The contract's wrist guidance (zero when off), from the observation's target block: the same

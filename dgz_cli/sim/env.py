@@ -127,7 +127,8 @@ class GraspEnv:
             self.cloud[b] = s.idx.cloud
         wrist_dim = self.cfg.contract.action.wrist_dim
         # (B, action_dim) 1 on the wrist and on the mask-enabled primitives of real nodes (r_residual's dims)
-        self._active_dims = np.concatenate([np.ones((B, wrist_dim)), (
+        wrist_acts = float(self.cfg.contract.action.wrist_residual > 0 or not self.cfg.contract.action.mask_actions)
+        self._active_dims = np.concatenate([np.full((B, wrist_dim), wrist_acts), (
             (self.mask > 0) & self.node_valid[..., None]).reshape(B, -1)], axis=1).astype(np.float64)
         self.cloud_pre = observe.cloud_terms(self.cloud)  # constants of observe.nearest_surface
         self.cloud_sum = self.cloud.sum(axis=1)  # (B, 3): the object centre is obj_pos + R · cloud_sum / P
@@ -213,10 +214,9 @@ class GraspEnv:
         cfg, B = self.cfg, self.B
         act, ep = cfg.contract.action, cfg.contract.episode
         a = np.nan_to_num(np.asarray(action, dtype=np.float64))
-        self._residual_sq = (np.clip(a, -1.0, 1.0) ** 2 * self._active_dims).sum(-1) / self._active_dims.sum(-1)
-        if cfg.contract.prior.enabled:  # the policy's action is a residual on the contract's Markov prior
-            a = a + cfg.contract.prior_action(self._nodes, self._global, self.mask, self.node_valid)
-        a = np.clip(a, -1.0, 1.0)
+        self._residual_sq = (np.clip(a, -1.0, 1.0) ** 2 * self._active_dims).sum(-1) / np.maximum(self._active_dims.sum(-1), 1.0)
+        # the policy's action is a (scaled) residual on the contract's Markov prior
+        a = np.clip(cfg.contract.compose(a, self._nodes, self._global, self.mask, self.node_valid), -1.0, 1.0)
         wrist, fingers = a[:, :act.wrist_dim], a[:, act.wrist_dim:]
         alpha = fingers.reshape(B, self.N, act.n_prim) * self.node_valid[..., None]
         new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,

@@ -167,9 +167,19 @@ class ActionLayout(_Frozen):
                                           "None = no cap")
     mask_actions: bool = Field(False, description="inactive primitive dimensions (activation mask 0) are not "
                                "actions: not sampled, not scored (log-prob, entropy, KL, BC)")
+    wrist_residual: float = Field(1.0, ge=0, le=1, description="the policy's wrist action is multiplied by this "
+                                  "before the prior and the guidance are added (0: the wrist follows the guidance "
+                                  "and the lift alone)")
+    finger_residual: float = Field(1.0, ge=0, le=1, description="the policy's finger actions are multiplied by this "
+                                   "before the closing prior is added (< 1 bounds how far a residual can undo it)")
 
     def dim(self, n_nodes: int) -> int:
         return self.wrist_dim + self.n_prim * n_nodes
+
+    def residual_gains(self, n_nodes: int) -> np.ndarray:
+        """(wrist_dim + n_prim·N,) the factors on the policy's own normalized action (all 1 by default)."""
+        return np.concatenate([np.full(self.wrist_dim, self.wrist_residual),
+                               np.full(self.n_prim * n_nodes, self.finger_residual)])
 
     def scales(self, n_nodes: int) -> np.ndarray:
         """(wrist_dim + n_prim·N,) physical units of one normalized action unit."""
@@ -246,6 +256,19 @@ class ControlContract(_Frozen):
         lay = self.observation
         target = np.asarray(glob)[:, lay.global_col("target")].astype(np.float64) * lay.target_scale
         return self.guidance.delta(target, grasp_offset, active)
+
+    def compose(self, policy_action: np.ndarray, nodes: np.ndarray, glob: np.ndarray, mask: np.ndarray,
+                node_valid: np.ndarray) -> np.ndarray:
+        """(B, action_dim) the normalized command before the [-1, 1] clip: the policy's action (B, action_dim)
+        times :meth:`ActionLayout.residual_gains`, plus :meth:`prior_action` of the same observation. The
+        simulator and the deploy loop both call this."""
+        a = np.asarray(policy_action, dtype=np.float64)
+        n = node_valid.shape[1]
+        if self.action.wrist_residual != 1.0 or self.action.finger_residual != 1.0:
+            a = a * self.action.residual_gains(n)
+        if self.prior.enabled:
+            a = a + self.prior_action(nodes, glob, mask, node_valid)
+        return a
 
     def prior_action(self, nodes: np.ndarray, glob: np.ndarray, mask: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
         """(B, action_dim) the closing prior's normalized action (zeros when disabled) from an observation:
