@@ -6,7 +6,7 @@ import pytest
 
 from conftest import asset_root, shipped_specs
 from dgz_cli.onboard.compile import Poser, compile_model
-from dgz_cli.onboard.functional import functional_check
+from dgz_cli.onboard.functional import functional_check, rot_warnings
 from dgz_cli.onboard.pipeline import onboard
 from dgz_cli.onboard.urdf import load_kinematics
 from dgz_cli.onboard.verify import lint_file
@@ -48,7 +48,21 @@ def test_reonboard_reproduces_spec_exactly(path):
 def test_functional_close_spread_oppose(path):
     spec = load_spec(path)
     kin = load_kinematics(_urdf(spec), spec.provenance.xacro_args)
-    assert functional_check(spec, Poser(kin, compile_model(kin))) == []
+    poser = Poser(kin, compile_model(kin))
+    assert functional_check(spec, poser) == []
+    assert rot_warnings(spec, poser) == []
+
+
+@pytest.mark.parametrize("hand", ["allegro", "shadow"])
+def test_a_flipped_thumb_rot_sign_is_warned(hand):
+    path = next(p for p in SPECS if p.parent.name == hand)
+    spec = load_spec(path)
+    kin = load_kinematics(_urdf(spec), spec.provenance.xacro_args)
+    rows = [r.model_copy(update=dict(sign=-r.sign)) if r.primitive.value == "ROT" and r.node.startswith("thumb")
+            else r for r in spec.joints]
+    flipped = spec.model_copy(update=dict(joints=rows))
+    warnings = rot_warnings(flipped, Poser(kin, compile_model(kin)))
+    assert len(warnings) == 1 and "ROT sign may be flipped" in warnings[0]
 
 
 @pytest.mark.parametrize("path", SPECS, ids=IDS)

@@ -12,6 +12,9 @@ A primitive command α is pushed through M_h (Δq_j = s_j · α[n_j, p_j], clipp
    the index tip (or the nearest other fingertip when there is no index), or toward that finger
    (its base → tip segment), or mostly toward the palm side (+n) for a thumb beside the palm.
 Distances are measured in the palm link's frame, so wrist joints do not fool the check.
+
+:func:`rot_warnings` adds a softer test of the thumb's ROT sign alone (a warning, not a refusal: on real hands the
+twist's effect on the tip is small, e.g. 2–4 mm of gap over 24–28 mm of tip travel on Allegro and Shadow).
 """
 
 from __future__ import annotations
@@ -135,3 +138,28 @@ def functional_check(spec: HandSpec, poser) -> list[str]:
                             "the palm side")
     poser.pose(poser.rest())
     return problems
+
+
+ROT_AWAY, ROT_MIN_TRAVEL = 0.05, 0.005  # gap change per unit of tip travel; m of tip travel between ±ROT
+
+
+def rot_warnings(spec: HandSpec, poser) -> list[str]:
+    """With the thumb half-closed (+FLEX 0.5 rad through M_h), +ROT (0.3 rad) should not leave its tip farther
+    from the index tip (or the nearest other fingertip) than −ROT does. Warn when it does by more than ROT_AWAY
+    per unit of the tip's travel between the two (a travel under ROT_MIN_TRAVEL is a pure twist: not judged)."""
+    poser.pose(poser.rest())
+    rest = _tips(spec, poser)
+    finger_of = {n.id: n.finger for n in spec.nodes}
+    if "thumb" not in rest or not any(r.primitive.value == "ROT" and finger_of[r.node] == "thumb" for r in spec.joints):
+        return []
+    target = "index" if "index" in rest else min((f for f in rest if f != "thumb"),
+                                                 key=lambda f: np.linalg.norm(rest[f] - rest["thumb"]))
+    half = _command(spec, poser.rest(), {"FLEX"}, {"thumb"}, CLOSE)
+    ends = {s: _apply(spec, poser, {"ROT"}, {"thumb"}, s * OPPOSE, half)["thumb"] for s in (1, -1)}
+    poser.pose(poser.rest())
+    travel = float(np.linalg.norm(ends[1] - ends[-1]))
+    away = float(np.linalg.norm(ends[1] - rest[target]) - np.linalg.norm(ends[-1] - rest[target]))
+    if travel < ROT_MIN_TRAVEL or away <= ROT_AWAY * travel:
+        return []
+    return [f"thumb +ROT leaves the half-closed thumb tip {away * 1000:.1f} mm farther from the {target} fingertip "
+            f"than -ROT does (tip travel {travel * 1000:.1f} mm): the ROT sign may be flipped"]

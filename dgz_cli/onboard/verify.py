@@ -83,7 +83,7 @@ def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None,
                                f"{urdf.name}", f"re-onboard: {reonboard}"))
     if not any(f.level == "error" for f in out):
         from dgz_cli.onboard.compile import Poser, compile_model
-        from dgz_cli.onboard.functional import functional_check
+        from dgz_cli.onboard.functional import functional_check, rot_warnings
 
         poser = poser if same else Poser(kin, compile_model(kin))
         missing = _without_collision(spec, kin, poser)
@@ -93,6 +93,9 @@ def verify_against_urdf(spec: HandSpec, spec_path: Path, asset_root: str | None,
         for problem in functional_check(spec, poser):
             out.append(Finding("error", "joints", f"functional check: {problem}",
                                "correct that finger's primitive/sign in an --overrides file, then re-onboard"))
+        for problem in rot_warnings(spec, poser):
+            out.append(Finding("warning", "joints", f"functional check: {problem}",
+                               "look at the thumb in `dgz show`; confirm or flip its ROT sign in an --overrides file"))
     return out
 
 
