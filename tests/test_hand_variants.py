@@ -84,6 +84,24 @@ def test_train_on_a_generated_folder_records_its_hands(base, tmp_path):
     assert [p.stat().st_mtime_ns for p in specs] == before
 
 
+def test_distill_on_a_generated_folder_records_its_hands(base, tmp_path):
+    from dgz_cli.cli.distill_cmd import build
+    from dgz_cli.rl.distill_config import DistillConfig
+
+    spec, urdf = base
+    folder = tmp_path / "gen"
+    write_variants(spec, urdf, folder, 3, 1)
+    cfg = DistillConfig(teacher="dgz-cpu-warmstart", hands=("dgz_tri", f"generated:{folder}"), objects="sphere",
+                        iterations=1, steps_per_env=4, epochs=1, threads=1)
+    dist = build(cfg, tmp_path / "student", None)
+    try:
+        assert dist.env.B == 2
+        assert dist.training_hands == {"dgz_tri": dist.training_hands["dgz_tri"],
+                                       "dgz_tri_v3_0000": hashlib.sha256((folder / "dgz_tri_v3_0000.yaml").read_bytes()).hexdigest()}
+    finally:
+        dist.env.close()
+
+
 @pytest.mark.parametrize("make", ["missing", "empty", "file"])
 def test_a_bad_generated_folder_is_one_clear_line(tmp_path, make):
     from dgz_cli.cli.train_cmd import hand_specs

@@ -53,7 +53,8 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     from dgz_cli.rl.distill import Distiller
     from dgz_cli.sim.hardware import HardwareViewEnv
     from dgz_cli.sim.objects import resolve_objects
-    from dgz_cli.spec.catalog import policy_ref, resolve_spec
+    from dgz_cli.cli.train_cmd import hand_specs
+    from dgz_cli.spec.catalog import policy_ref
     from dgz_cli.spec.errors import DgzError
     from dgz_cli.spec.hardware_view import student_contract
     from dgz_cli.spec.io import load_spec
@@ -65,7 +66,7 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     teacher = LoadedPolicy(directory)
     if teacher.meta.student is not None:
         raise DgzError(f"--teacher {cfg.teacher}: is a distilled student", "distil from a `dgz train` checkpoint")
-    spec_paths = {h: resolve_spec(h) for h in cfg.hands}
+    spec_paths = hand_specs(cfg.hands, asset_root)  # shipped names, spec paths and generated:DIR, as `dgz train`
     specs = [load_spec(p) for p in spec_paths.values()]
     objs = resolve_objects(cfg.objects, asset_root)
     pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]

@@ -19,7 +19,8 @@ class DistillConfig(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     teacher: str = Field(description="the teacher: a checkpoint folder or a name under policies/")
-    hands: tuple[str, ...] = Field(DEFAULT_HANDS, description="hands the student is distilled on")
+    hands: tuple[str, ...] = Field(DEFAULT_HANDS, description="hands the student is distilled on: shipped names, spec files, "
+                                  "generated:DIR (every NAME.urdf in DIR, as dgz train)")
     objects: str = Field("ycb45", description="ycb45, primitives, or comma-separated object names")
     repeat: int = Field(1, ge=1, le=100, description="N_env = hands × objects × repeat")
     iterations: int = Field(10, ge=1, le=10**6, description="DAgger iterations: roll out the student, label "
