@@ -220,7 +220,10 @@ def evaluate(
     json_out: Optional[Path] = typer.Option(None, "--json", help="write results as JSON"),
     csv_out: Optional[Path] = typer.Option(None, "--csv", help="write per-episode rows as CSV"),
     table: Optional[List[Path]] = typer.Option(None, "--table", help="print Table I from `--json` result files "
-                                               "(repeatable) instead of evaluating"),
+                                               "(repeatable) instead of evaluating; a --policy scripted file is the "
+                                               "scripted baseline row"),
+    paper: Optional[bool] = typer.Option(None, "--paper/--no-paper", help="with --table: also print the paper's "
+                                         "Table I rows, quoted (default: when a file has one of its hands)"),
     guidance: float = typer.Option(0.0, "--guidance", help="with --policy scripted: the contract's wrist guidance "
                                    "gain (a checkpoint always runs under its own contract)"),
     roll: str = typer.Option("uniform", "--roll", help="with --policy scripted: start roll, uniform or narrow "
@@ -239,7 +242,9 @@ def evaluate(
     from dgz_cli.cli import sim_cmd
 
     if table:
-        raise typer.Exit(sim_cmd.table(table, out))
+        from dgz_cli.cli.eval_table import render_table
+
+        raise typer.Exit(render_table(table, out, paper))
     if not hand:
         raise DgzError("no --hand given", "name one or more hands, e.g. --hand leap --hand inspire")
     hands = [h for item in hand for h in item.split(",") if h]

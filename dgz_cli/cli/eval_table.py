@@ -1,4 +1,5 @@
-"""Schema of a `dgz eval --json` result file, as `dgz eval --table` reads it (finite, bounded fields)."""
+"""`dgz eval --table`: the schema of a `dgz eval --json` result file as the table reads it (finite, bounded
+fields), the paper's Table I numbers, and the table itself (ours next to the paper's and the scripted baseline)."""
 
 from __future__ import annotations
 
@@ -47,3 +48,122 @@ def load_eval_report(path: Path) -> EvalReport:
         e = exc.errors()[0]
         loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
         raise DgzError(f"{path}: field '{loc}': {e['msg']}", hint) from None
+
+
+# ------------------------------------------------------------------------------------------------------------
+# The paper's Table I, as data: the one place its numbers live.
+# Source: the DexGrasp-Zero paper (shared/paper/dexgrasp-zero.tex), Table I, \label{tab:cross}, caption
+# "Cross-embodiment training and zero-shot transfer results (success rate)". Cells are quoted exactly as
+# printed (strings; bold dropped), averages included (the paper's own "Seen"/"Unseen" columns).
+# ------------------------------------------------------------------------------------------------------------
+
+PAPER_TABLE_NAME = ("DexGrasp-Zero paper, Table I (tab:cross): \"Cross-embodiment training and zero-shot transfer "
+                    "results (success rate)\"")
+# the paper's column → our shipped hand name, in the paper's column order
+PAPER_HANDS: tuple[tuple[str, str], ...] = (("Allegro", "allegro"), ("Shadow", "shadow"), ("Ability", "ability"),
+                                            ("Schunk", "schunk_svh"), ("LEAP", "leap"), ("Inspire", "inspire"))
+PAPER_TRAINING_HANDS = ("allegro", "shadow", "ability", "schunk_svh")
+PAPER_UNSEEN_HANDS = ("leap", "inspire")
+
+
+class PaperRow(BaseModel):
+    """One row of the paper's Table I: ``rates`` per hand (our names), ``seen``/``unseen`` its averages;
+    ``ablation``: the `dgz train --ablation` variant that reproduces it (None: another method)."""
+
+    model_config = ConfigDict(frozen=True)
+
+    method: str
+    variant: str
+    ablation: str | None
+    rates: dict[str, str]
+    seen: str
+    unseen: str
+
+
+def _row(method: str, variant: str, ablation: str | None, *cells: str) -> PaperRow:
+    rates = dict(zip((h for _, h in PAPER_HANDS), cells[:6], strict=True))
+    return PaperRow(method=method, variant=variant, ablation=ablation, rates=rates, seen=cells[6], unseen=cells[7])
+
+
+PAPER_TABLE_I: tuple[PaperRow, ...] = (
+    _row("CrossDex", "per-object", None, "0.81", "0.85", "0.90", "0.90", "0.34", "0.44", "0.865", "0.39"),
+    _row("CrossDex", "multi-object", None, "0.39", "0.69", "0.42", "0.60", "0.19", "0.34", "0.525", "0.265"),
+    _row("DexGrasp-Zero", "w/o motion primitives", "no_primitives",
+         "0.52", "0.51", "0.64", "0.59", "0.39", "0.29", "0.565", "0.34"),
+    _row("DexGrasp-Zero", "early fusion", "early_fusion",
+         "0.42", "0.47", "0.59", "0.54", "0.46", "0.34", "0.505", "0.40"),
+    _row("DexGrasp-Zero", "w/o G_physical priors", "no_physical",
+         "0.91", "0.89", "0.90", "0.84", "0.82", "0.79", "0.885", "0.805"),
+    _row("DexGrasp-Zero", "w/o M_activation & r_pen", "no_mask",
+         "0.92", "0.91", "0.90", "0.81", "0.50", "0.76", "0.885", "0.63"),
+    _row("DexGrasp-Zero", "full model", "full", "0.92", "0.95", "0.90", "0.91", "0.93", "0.82", "0.92", "0.85"),
+)
+
+
+def _column_order(hand: str) -> tuple[int, str]:
+    """The paper's hands first, in its column order, then the others by name."""
+    names = [h for _, h in PAPER_HANDS]
+    return (names.index(hand), "") if hand in names else (len(names), hand)
+
+
+def render_table(files: list[Path], console, paper: bool | None = None) -> int:
+    """Print Table I from `dgz eval --json` files (``console``: a rich Console): one row per file, columns
+    training hands | unseen hands | seen and unseen averages. The split is the files' own (a hand is a
+    training column when any file's policy trained on it), or the paper's when only baselines (no training
+    hands) are given. A `--policy scripted` file is labelled the scripted baseline.
+
+    ``paper``: also print the paper's Table I rows (:data:`PAPER_TABLE_I`, quoted) above ours, with its
+    hands as columns; None = when any file has one of the paper's hands. A note names any hand whose split
+    differs from the paper's. Returns the exit code (0)."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    rows = []
+    for f in files:
+        rep = load_eval_report(Path(f))  # schema-checked: a bad file is one line naming the file and field
+        rows.append((Path(f).stem, rep.policy, set(rep.training_hands),
+                     {h: r.model_dump() for h, r in rep.hands.items()}))
+    present = {h for *_, hs in rows for h in hs}
+    paper_names = {h for _, h in PAPER_HANDS}
+    show_paper = bool(present & paper_names) if paper is None else paper
+    trained = set().union(*(tr for _, _, tr, _ in rows))  # the protocol's split: any policy's training hands
+    columns = present | (paper_names if show_paper else set())
+    if not trained:  # baselines only: the paper's split for its hands
+        trained = set(PAPER_TRAINING_HANDS)
+    seen_cols = sorted((h for h in columns if h in trained), key=_column_order)
+    unseen_cols = sorted((h for h in columns if h not in trained), key=_column_order)
+    cols = seen_cols + unseen_cols
+    t = Table(title="success rate (Table I layout: training hands | unseen hands | averages)")
+    t.add_column("policy", no_wrap=True)
+    for h in seen_cols:
+        t.add_column(f"{escape(str(h))} (train)", justify="right")
+    for h in unseen_cols:
+        t.add_column(f"{escape(str(h))} (unseen)", justify="right")
+    t.add_column("seen avg", justify="right")
+    t.add_column("unseen avg", justify="right")
+    if show_paper:
+        for p in PAPER_TABLE_I:
+            t.add_row(escape(f"paper: {p.method} ({p.variant})"), *(p.rates.get(h, "—") for h in cols), p.seen,
+                      p.unseen)
+        t.add_section()
+        t.caption = escape(f"paper rows: {PAPER_TABLE_NAME}, quoted as printed (its averages over its "
+                           "4 training / 2 unseen hands); — = not in that table")
+    for name, policy, _, hs in rows:
+        def avg(group: list[str]) -> str:
+            have = [hs[h]["success_rate"] for h in group if h in hs]
+            return f"{sum(have) / len(have):.3f}" if have else "—"
+
+        label = f"{name} (scripted baseline)" if policy == "scripted" else f"{name} ({policy})"
+        cells = [f"{hs[h]['success_rate']:.2f}" if h in hs else "—" for h in cols]
+        t.add_row(escape(label), *cells, avg(seen_cols), avg(unseen_cols))
+    labels = [len(f"{n} ({p})") + 20 for n, p, *_ in rows] + [60]
+    wide = Console(file=console.file, emoji=False, width=max(console.width, max(labels) + 20 * (len(cols) + 2)))
+    wide.print(t)
+    if show_paper:
+        differ = [f"{h} (ours: {'train' if h in trained else 'unseen'}, paper: "
+                  f"{'train' if h in PAPER_TRAINING_HANDS else 'unseen'})"
+                  for h in cols if h in paper_names and (h in trained) != (h in PAPER_TRAINING_HANDS)]
+        if differ:
+            wide.print(escape("note: the split differs from the paper's for " + ", ".join(differ)), highlight=False)
+    return 0
