@@ -236,9 +236,17 @@ def evaluate(
     perturb: bool = typer.Option(True, "--perturb/--no-perturb", help="a distilled student observes under the "
                                  "hardware perturbations recorded in its checkpoint (default), or the simulator's "
                                  "observation; no effect on other policies"),
+    feature_scale: float = typer.Option(1.0, "--feature-scale", help="URDF-prior sensitivity: scale every link "
+                                        "length of the evaluated hands by this (> 0) in the policy's physical "
+                                        "features only; the simulated hand and the protocol are unchanged"),
+    approach_cone: Optional[float] = typer.Option(None, "--approach-cone", help="start state: max tilt (rad, "
+                                                  "0 to π/2) of the approach direction from vertical; 0 = straight "
+                                                  "above the object, the paper's Barrett protocol (default: the "
+                                                  "checkpoint's own; 0.5 for scripted)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
-    """Success rate per hand and object under the protocol (lift, hold), with both cores."""
+    """Success rate per hand and object under the protocol (lift, hold), with both cores; the closing onset
+    (step and palm → object distance where the fingers start to close) per hand and episode."""
     from dgz_cli.cli import sim_cmd
 
     if table:
@@ -247,10 +255,18 @@ def evaluate(
         raise typer.Exit(render_table(table, out, paper))
     if not hand:
         raise DgzError("no --hand given", "name one or more hands, e.g. --hand leap --hand inspire")
+    import math
+
+    if not (math.isfinite(feature_scale) and feature_scale > 0):
+        raise DgzError(f"--feature-scale {feature_scale}: must be a finite number > 0", "e.g. --feature-scale 2")
+    if approach_cone is not None and not 0.0 <= approach_cone <= math.pi / 2:
+        raise DgzError(f"--approach-cone {approach_cone}: must be in [0, π/2] rad",
+                       "0 approaches from straight above; the default cone is 0.5")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, roll=roll, video=video,
-                                      video_episodes=video_episodes, perturb=perturb))
+                                      video_episodes=video_episodes, perturb=perturb, feature_scale=feature_scale,
+                                      approach_cone=approach_cone))
 
 
 @assets_app.command("fetch")

@@ -35,12 +35,13 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
              guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2,
-             perturb: bool = True) -> int:
-    from dgz_cli.sim.evaluate import failure_class, run_episodes, summarize
+             perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None) -> int:
+    from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.envconfig import EnvConfig
     from dgz_cli.spec.io import atomic_write, check_output, load_spec
+    from dgz_cli.spec.transform import scale_lengths
 
     import os
 
@@ -52,7 +53,11 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     if video is not None:
         video = _video_dir(video, console)  # None (with a one-line note) where nothing can render
     make_policy, meta = _policy_factory(policy)
-    specs = [load_spec(resolve_spec(h)) for h in hands]
+    # the URDF-prior sensitivity test: link lengths scaled in the policy's physical features only
+    specs = [scale_lengths(load_spec(resolve_spec(h)), feature_scale) for h in hands]
+    if meta is None and feature_scale != 1.0:
+        console.print("[yellow]note:[/] --feature-scale changes only the policy's physical features, which the "
+                      "scripted policy does not read")
     if zero_shot:
         if meta is None:
             raise DgzError("--zero-shot needs a trained policy's list of training hands",
@@ -75,6 +80,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
             cfg = EnvConfig(contract=ControlContract(guidance=WristGuidance(gain=guidance)), roll=roll)
         except ValueError:
             raise DgzError(f"--guidance {guidance}: the gain must be in [0, 1]", "e.g. --guidance 0.05") from None
+    if approach_cone is not None:  # the start state, a protocol choice: it applies to a checkpoint too
+        cfg = cfg.model_copy(update=dict(approach_cone=approach_cone))
     if meta is not None:
         from dgz_cli.rl.checkpoint import spec_hash
 
@@ -105,7 +112,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
                     trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps,
                     guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll,
-                    hardware_view=None if view is None else view.model_dump())
+                    hardware_view=None if view is None else view.model_dump(), feature_scale=feature_scale,
+                    approach_distance_m=cfg.approach_distance, approach_cone_rad=cfg.approach_cone)
     table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "
                         f"kept) and held {ep.hold_s} s; {trials} trials per object, seed {seed}")
     table.add_column("hand")
@@ -116,26 +124,25 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     for c in FAILURE_CLASSES:
         table.add_column(c, justify="right")
     table.add_column("rise ≥ 0.1 m (GraspXL)", justify="right")
+    table.add_column("closing onset, palm → surface m", justify="right")
     for name, h in summary.items():
+        onset = h["closing_onset_distance_m"]
         table.add_row(escape(name), f"{h['success_rate']:.3f}", str(h["episodes"]),
-                      *(str(h["failures"][c]) for c in FAILURE_CLASSES), f"{h['graspxl_success_rate']:.3f}")
+                      *(str(h["failures"][c]) for c in FAILURE_CLASSES), f"{h['graspxl_success_rate']:.3f}",
+                      "—" if onset is None else f"{onset:.3f}")
     console.print(table)
     console.print(f"[dim]{len(records)} episodes in {time.perf_counter() - t0:.0f} s[/]")
     if json_out is not None:
         report = dict(policy=policy, protocol=protocol,
                       training_hands=sorted(meta.training_hands) if meta else [],
-                      hands={k: dict(success_rate=v["success_rate"], episodes=v["episodes"], failures=v["failures"],
-                                     graspxl_success_rate=v["graspxl_success_rate"], objects=v["objects"])
-                             for k, v in summary.items()})
+                      hands=hand_reports(summary))
         atomic_write(json_out, json.dumps(report, indent=2) + "\n")
     if csv_out is not None:
         buf = io.StringIO()
         w = csv.writer(buf)
-        w.writerow(["hand", "object", "trial", "success", "failure", "max_rise_m", "return"])
+        w.writerow(CSV_COLUMNS)
         for r in records:
-            why = failure_class(r, cfg.contract.episode.lift_height, cfg.contract.episode.success_fraction)
-            w.writerow([r["hand"], r["object"], r["trial"], int(r["success"]), why or "", f"{r['max_rise']:.4f}",
-                        f"{r['return_']:.3f}"])
+            w.writerow(csv_row(r, cfg.contract.episode.lift_height, cfg.contract.episode.success_fraction))
         atomic_write(csv_out, buf.getvalue())
     if video is not None:
         from dgz_cli.sim.video import rollouts, write_videos
@@ -185,35 +192,3 @@ def _policy_factory(policy: str):
                        "use 'scripted', a run directory written by `dgz train`, or a shipped policy name")
     loaded = LoadedPolicy(directory)
     return (lambda env: loaded), loaded.meta
-
-
-def table(files: list[Path], console: Console) -> int:
-    """Paper Table I layout from `dgz eval --json` files: training hands | unseen hands | averages."""
-    rows = []
-    for f in files:
-        from dgz_cli.cli.eval_table import load_eval_report
-
-        rep = load_eval_report(Path(f))  # schema-checked: a bad file is one line naming the file and field
-        hands = {h: r.model_dump() for h, r in rep.hands.items()}
-        rows.append((Path(f).stem, rep.policy, set(rep.training_hands), hands))
-    trained = set().union(*(tr for _, _, tr, _ in rows))  # the protocol's split: any policy's training hands
-    seen_cols = sorted({h for _, _, _, hs in rows for h in hs if h in trained})
-    unseen_cols = sorted({h for _, _, _, hs in rows for h in hs if h not in trained})
-    t = Table(title="success rate (Table I layout: training hands | unseen hands | averages)")
-    t.add_column("policy")
-    for h in seen_cols:
-        t.add_column(f"{escape(str(h))} (train)", justify="right")
-    for h in unseen_cols:
-        t.add_column(f"{escape(str(h))} (unseen)", justify="right")
-    t.add_column("seen avg", justify="right")
-    t.add_column("unseen avg", justify="right")
-    for name, policy, _, hs in rows:
-        def avg(cols: list[str]) -> str:
-            have = [hs[h]["success_rate"] for h in cols if h in hs]
-            return f"{sum(have) / len(have):.2f}" if have else "—"
-
-        cells = [f"{hs[h]['success_rate']:.2f}" if h in hs else "—" for h in seen_cols + unseen_cols]
-        t.add_row(escape(f"{name} ({policy})"), *cells, avg(seen_cols), avg(unseen_cols))
-    wide = Console(file=console.file, emoji=False, width=max(console.width, 60 + 16 * (len(seen_cols) + len(unseen_cols))))
-    wide.print(t)
-    return 0

@@ -21,8 +21,9 @@ from dgz_cli.sim.objects import ObjectModel
 from dgz_cli.spec.models import NODE_TYPES, PRIMITIVES, HandSpec
 
 # The hand closes (closing onset) at the first control step where its mean FLEX command, normalized, over its
-# FLEX-active finger nodes exceeds this (:func:`closing_command`): "goes positive".
-CLOSING_ONSET_FLEX = 0.0
+# FLEX-active finger nodes exceeds this (:func:`closing_command`): half the full closing speed, so that a learned
+# residual's small positive FLEX mean during the approach is not read as closing.
+CLOSING_ONSET_FLEX = 0.5
 
 
 def run_episodes(pairs: list[tuple[HandSpec, ObjectModel]], make_policy: Callable[[GraspEnv], object], trials: int,
