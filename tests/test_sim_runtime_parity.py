@@ -72,8 +72,8 @@ def _deploy_actions(policy: str, tmp_path, contract=None):
 
 
 @pytest.mark.parametrize("policy,contract", [("scripted", None), ("dgz-cpu-warmstart", None), ("scripted", LEVERS),
-                                            ("dgz-cpu-guided", None)],
-                         ids=["scripted", "checkpoint", "scripted-guided-markov", "checkpoint-guided-prior"])
+                                            ("dgz-cpu-residual", None)],
+                         ids=["scripted", "checkpoint", "scripted-guided-markov", "checkpoint-guided-prior-residual"])
 def test_deploy_on_sim_reproduces_eval(policy, contract, tmp_path):
     expected, record = _eval_actions(policy, contract)
     got, header, end = _deploy_actions(policy, tmp_path, contract)
