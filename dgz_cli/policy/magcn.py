@@ -103,7 +103,7 @@ class MAGCN(nn.Module):
         self.log_std_prim = nn.Parameter(torch.full(prim_shape, cfg.init_log_std))
         self.type_cols = lay.node_col("node_type")
         self.mask_actions = act.mask_actions
-        self.wrist_acts = act.wrist_residual > 0
+        self.wrist_is_action = act.wrist_is_action
 
     # ------------------------------------------------------------------ encoder
     def encode(self, obs: Obs) -> tuple[torch.Tensor, torch.Tensor]:
@@ -144,14 +144,14 @@ class MAGCN(nn.Module):
 
     def action_valid(self, obs: Obs) -> torch.Tensor:
         """(B, action_dim) bool: the wrist dims and the dims of real (not padded) nodes; with the contract's
-        ``mask_actions``, only the primitives the activation mask enables, and the wrist only if the contract's
-        ``wrist_residual`` lets it act."""
+        ``mask_actions``, only the primitives the activation mask enables, and the wrist only if it is an
+        action (``ActionLayout.wrist_is_action``)."""
         av = action_valid(obs["node_valid"], self.wrist_dim, self.n_prim)
         if self.mask_actions:
             av = av.clone()
             av[:, self.wrist_dim:] &= (obs["mask"] > 0).reshape(av.shape[0], -1)
-            if not self.wrist_acts:
-                av[:, :self.wrist_dim] = False
+        if not self.wrist_is_action:
+            av[:, :self.wrist_dim] = False
         return av
 
     @torch.no_grad()

@@ -225,7 +225,7 @@ class Runner:
         """The command before the safety filter: the policy's action scaled by the contract's residual gains
         plus its closing prior, from the observation — the simulator's computation (``ControlContract.compose``)."""
         c = self.cfg.contract
-        if not c.prior.enabled and c.action.wrist_residual == 1.0 and c.action.finger_residual == 1.0:
+        if not c.prior.enabled and not c.action.scales_residual:
             return raw
         obs_arrays = [np.asarray(obs[k]) for k in ("nodes", "global", "mask", "node_valid")]
         return c.compose(raw[None], *obs_arrays)[0]

@@ -127,7 +127,7 @@ class GraspEnv:
             self.cloud[b] = s.idx.cloud
         wrist_dim = self.cfg.contract.action.wrist_dim
         # (B, action_dim) 1 on the wrist and on the mask-enabled primitives of real nodes (r_residual's dims)
-        wrist_acts = float(self.cfg.contract.action.wrist_residual > 0 or not self.cfg.contract.action.mask_actions)
+        wrist_acts = float(self.cfg.contract.action.wrist_is_action)
         self._active_dims = np.concatenate([np.full((B, wrist_dim), wrist_acts), (
             (self.mask > 0) & self.node_valid[..., None]).reshape(B, -1)], axis=1).astype(np.float64)
         self.cloud_pre = observe.cloud_terms(self.cloud)  # constants of observe.nearest_surface

@@ -176,6 +176,17 @@ class ActionLayout(_Frozen):
     def dim(self, n_nodes: int) -> int:
         return self.wrist_dim + self.n_prim * n_nodes
 
+    @property
+    def scales_residual(self) -> bool:
+        """Whether :meth:`residual_gains` differ from 1 anywhere."""
+        return self.wrist_residual != 1.0 or self.finger_residual != 1.0
+
+    @property
+    def wrist_is_action(self) -> bool:
+        """Whether the wrist dims are actions (sampled and scored): always, unless ``mask_actions`` and a
+        ``wrist_residual`` of 0 leave them without effect."""
+        return not (self.mask_actions and self.wrist_residual == 0)
+
     def residual_gains(self, n_nodes: int) -> np.ndarray:
         """(wrist_dim + n_prim·N,) the factors on the policy's own normalized action (all 1 by default)."""
         return np.concatenate([np.full(self.wrist_dim, self.wrist_residual),
@@ -264,7 +275,7 @@ class ControlContract(_Frozen):
         simulator and the deploy loop both call this."""
         a = np.asarray(policy_action, dtype=np.float64)
         n = node_valid.shape[1]
-        if self.action.wrist_residual != 1.0 or self.action.finger_residual != 1.0:
+        if self.action.scales_residual:
             a = a * self.action.residual_gains(n)
         if self.prior.enabled:
             a = a + self.prior_action(nodes, glob, mask, node_valid)
