@@ -382,6 +382,23 @@ def test_eval_records_feature_scale_start_state_and_onset(tmp_path):
     assert hand["closed_episodes"] == 1 and 0 < hand["closing_onset_distance_m"] < 0.3
     rows = cs.read_text().splitlines()
     assert rows[0] == ",".join(CSV_COLUMNS) and len(rows) == 2 and rows[1].split(",")[-3] != ""
+    assert data["protocol"]["physics_hz"] == 400.0
+
+
+@needs_wiring
+def test_eval_physics_hz_sets_the_scripted_env(tmp_path):
+    """The physics_hz ±0.03 check (issue 11, lever 9) evaluates the scripted grasp at a lower physics rate: the
+    rate reaches the simulator and the record, and the result differs from 400 Hz (same start states)."""
+    out = {}
+    for hz in ("400", "100"):
+        js = tmp_path / f"{hz}.json"
+        res = _dgz("eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "2", "--physics-hz", hz,
+                   "--csv", str(tmp_path / f"{hz}.csv"), "--json", str(js), cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        out[hz] = json.loads(js.read_text())
+        assert out[hz]["protocol"]["physics_hz"] == float(hz)
+    rows = {hz: (tmp_path / f"{hz}.csv").read_text().splitlines()[1:] for hz in out}
+    assert rows["400"] != rows["100"]  # another physics step gives other trajectories
 
 
 @needs_wiring
@@ -390,6 +407,10 @@ def test_eval_records_feature_scale_start_state_and_onset(tmp_path):
     (("--feature-scale", "nan"), "--feature-scale"),
     (("--approach-cone", "-0.1"), "--approach-cone"),
     (("--approach-cone", "2"), "--approach-cone"),
+    (("--physics-hz", "250"), "--physics-hz"),  # not a whole number of physics steps per 20 Hz control step
+    (("--physics-hz", "0"), "--physics-hz"),
+    (("--physics-hz", "-400"), "--physics-hz"),
+    (("--policy", "dgz-cpu-residual", "--physics-hz", "200"), "--physics-hz"),  # a checkpoint runs its own
 ])
 def test_eval_refuses_bad_protocol_options(tmp_path, args, message):
     res = _dgz("eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1", *args, cwd=tmp_path)

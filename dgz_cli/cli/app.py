@@ -228,6 +228,9 @@ def evaluate(
                                    "gain (a checkpoint always runs under its own contract)"),
     roll: str = typer.Option("uniform", "--roll", help="with --policy scripted: start roll, uniform or narrow "
                              "(a checkpoint uses its own)"),
+    physics_hz: Optional[float] = typer.Option(None, "--physics-hz", help="with --policy scripted: physics rate, a "
+                                               "whole multiple of the 20 Hz control rate (default: the contract's "
+                                               "400; a checkpoint uses its own)"),
     video: Optional[Path] = typer.Option(None, "--video", help="also render episodes offscreen into this folder: "
                                          "MP4 per episode + contact_sheet.png (needs EGL or OSMesa; skipped with a "
                                          "message where there is none)"),
@@ -266,7 +269,7 @@ def evaluate(
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, roll=roll, video=video,
                                       video_episodes=video_episodes, perturb=perturb, feature_scale=feature_scale,
-                                      approach_cone=approach_cone))
+                                      approach_cone=approach_cone, physics_hz=physics_hz))
 
 
 @assets_app.command("fetch")

@@ -35,7 +35,8 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
              guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2,
-             perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None) -> int:
+             perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
+             physics_hz: float | None = None) -> int:
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
@@ -66,18 +67,25 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         if seen:
             raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
                            f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
-    if meta is not None and (guidance != 0.0 or roll != "uniform"):
-        raise DgzError("--guidance and --roll set the scripted policy's env; a checkpoint runs under its own",
-                       "drop --guidance/--roll")
+    if meta is not None and (guidance != 0.0 or roll != "uniform" or physics_hz is not None):
+        raise DgzError("--guidance, --roll and --physics-hz set the scripted policy's env; a checkpoint runs under "
+                       "its own", "drop --guidance/--roll/--physics-hz")
     if roll not in ("uniform", "narrow"):
         raise DgzError(f"--roll {roll!r} is not supported", "use --roll uniform or --roll narrow")
     if meta is not None:
         cfg = meta.env  # a policy is evaluated under the contract it was trained with
     else:
-        from dgz_cli.spec.contract import ControlContract, WristGuidance
+        from dgz_cli.spec.contract import ControlContract, EpisodeProtocol, WristGuidance
 
         try:
-            cfg = EnvConfig(contract=ControlContract(guidance=WristGuidance(gain=guidance)), roll=roll)
+            if physics_hz is not None and not 20.0 <= physics_hz <= 2000.0:  # dgz train's bounds
+                raise ValueError(physics_hz)
+            episode = EpisodeProtocol() if physics_hz is None else EpisodeProtocol(physics_dt=1.0 / physics_hz)
+        except ValueError:
+            raise DgzError(f"--physics-hz {physics_hz}: must be a whole multiple of the 20 Hz control rate in "
+                           "[20, 2000]", "e.g. --physics-hz 200") from None
+        try:
+            cfg = EnvConfig(contract=ControlContract(guidance=WristGuidance(gain=guidance), episode=episode), roll=roll)
         except ValueError:
             raise DgzError(f"--guidance {guidance}: the gain must be in [0, 1]", "e.g. --guidance 0.05") from None
     if approach_cone is not None:  # the start state, a protocol choice: it applies to a checkpoint too
@@ -112,6 +120,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
                     trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps,
                     guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll,
+                    physics_hz=round(1.0 / ep.physics_dt, 6),
                     hardware_view=None if view is None else view.model_dump(), feature_scale=feature_scale,
                     approach_distance_m=cfg.approach_distance, approach_cone_rad=cfg.approach_cone)
     table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "
