@@ -120,7 +120,8 @@ def test_train_bad_options(tmp_path, args, message):
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart", "dgz-cpu-guided", "dgz-cpu-residual"])
+@pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart", "dgz-cpu-guided", "dgz-cpu-residual",
+                                  "dgz-cpu-residual-nocap"])
 def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     from conftest import REPO
     from dgz_cli.policy.graph import to_tensors
