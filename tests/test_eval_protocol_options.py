@@ -410,6 +410,8 @@ def test_eval_physics_hz_sets_the_scripted_env(tmp_path):
     (("--physics-hz", "250"), "--physics-hz"),  # not a whole number of physics steps per 20 Hz control step
     (("--physics-hz", "0"), "--physics-hz"),
     (("--physics-hz", "-400"), "--physics-hz"),
+    (("--guidance", "1.5"), "--guidance"),  # a gain, in [0, 1]
+    (("--guidance", "-0.05"), "--guidance"),
     (("--policy", "dgz-cpu-residual", "--physics-hz", "200"), "--physics-hz"),  # a checkpoint runs its own
 ])
 def test_eval_refuses_bad_protocol_options(tmp_path, args, message):

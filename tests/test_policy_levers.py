@@ -283,7 +283,7 @@ def test_early_stop_ends_hopeless_episodes_in_training_only():
 
 def test_throughput_levers_reach_the_env_config():
     from dgz_cli.rl.config import TrainConfig
-    from dgz_cli.rl.runner import env_config
+    from dgz_cli.rl.config import env_config
 
     cfg = env_config(TrainConfig(physics_hz=200, early_stop=True))
     assert cfg.contract.episode.substeps == 10 and cfg.early_stop

@@ -48,7 +48,7 @@ def test_env_rewards_a_carried_object_only_with_a_lift_weight():
 
 def test_training_config_carries_the_lift_weight_into_the_env():
     from dgz_cli.rl.config import TrainConfig
-    from dgz_cli.rl.runner import env_config
+    from dgz_cli.rl.config import env_config
 
     assert env_config(TrainConfig()).reward == RewardWeights()  # the paper's reward by default
     assert env_config(TrainConfig(lift_weight=50.0)).reward.lift == 50.0

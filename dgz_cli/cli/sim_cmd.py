@@ -75,23 +75,20 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     if meta is not None:
         cfg = meta.env  # a policy is evaluated under the contract it was trained with
     else:
-        from dgz_cli.spec.contract import ControlContract, EpisodeProtocol, WristGuidance
+        from pydantic import ValidationError
 
-        if physics_hz is not None:  # the rule's one home is dgz train's option (bounds, whole substeps)
-            from pydantic import ValidationError
+        from dgz_cli.rl.config import TrainConfig, env_config
 
-            from dgz_cli.rl.config import TrainConfig
-
-            try:
-                TrainConfig(physics_hz=physics_hz)
-            except ValidationError as exc:
-                raise DgzError(f"--physics-hz {physics_hz}: {exc.errors()[0]['msg'].removeprefix('Value error, ')}",
-                               "e.g. --physics-hz 200") from None
-        episode = EpisodeProtocol() if physics_hz is None else EpisodeProtocol(physics_dt=1.0 / physics_hz)
+        # the scripted env is the one `dgz train` would build for the same options (one home: env_config)
+        options = dict(guidance_gain=guidance, roll=roll) | ({} if physics_hz is None else dict(physics_hz=physics_hz))
         try:
-            cfg = EnvConfig(contract=ControlContract(guidance=WristGuidance(gain=guidance), episode=episode), roll=roll)
-        except ValueError:
-            raise DgzError(f"--guidance {guidance}: the gain must be in [0, 1]", "e.g. --guidance 0.05") from None
+            cfg = env_config(TrainConfig(**options))
+        except ValidationError as exc:
+            error = exc.errors()[0]
+            option = {"guidance_gain": "--guidance", "physics_hz": "--physics-hz"}.get(error["loc"][0], "--roll")
+            value = {"--guidance": guidance, "--physics-hz": physics_hz}.get(option, roll)
+            example = {"--guidance": "--guidance 0.05", "--physics-hz": "--physics-hz 200"}.get(option, "--roll narrow")
+            raise DgzError(f"{option} {value}: {error['msg'].removeprefix('Value error, ')}", f"e.g. {example}") from None
     if approach_cone is not None:  # the start state, a protocol choice: it applies to a checkpoint too
         cfg = cfg.model_copy(update=dict(approach_cone=approach_cone))
     if meta is not None:

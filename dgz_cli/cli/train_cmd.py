@@ -72,7 +72,8 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     Trainer that receives them. Bad input fails here, before anything is written."""
     from dgz_cli.policy.presets import PRESETS
     from dgz_cli.rl.checkpoint import spec_hash
-    from dgz_cli.rl.runner import Trainer, env_config
+    from dgz_cli.rl.config import env_config
+    from dgz_cli.rl.runner import Trainer
     from dgz_cli.sim.env import GraspEnv
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.sim.scripted import ScriptedGrasp

@@ -7,6 +7,10 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
+                                   ControlContract, EpisodeProtocol, ObservationLayout, WristGuidance)
+from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward, RewardWeights
+
 ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
 
 
@@ -97,9 +101,27 @@ class TrainConfig(BaseModel):
     @field_validator("physics_hz")
     @classmethod
     def _whole_substeps(cls, v: float) -> float:
-        from dgz_cli.spec.contract import EpisodeProtocol
-
         control_hz = EpisodeProtocol().control_hz
         if abs(v / control_hz - round(v / control_hz)) > 1e-9:
             raise ValueError(f"must be a whole multiple of the {control_hz:g} Hz control rate (e.g. 200 or 400)")
         return v
+
+
+def env_config(cfg: TrainConfig) -> EnvConfig:
+    """The env a run config asks for: the one place a TrainConfig becomes a control contract, a reward and a
+    start-state protocol. ``dgz train`` builds its env from it and ``dgz eval --policy scripted`` its
+    ``--guidance``/``--roll``/``--physics-hz`` env, so both agree on the same options by construction."""
+    mode = "joint" if cfg.ablation == "no_primitives" else "primitive"
+    layout = (ObservationLayout() if cfg.observation == "paper"
+              else ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS))
+    contract = ControlContract(observation=layout,
+                               action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
+                                                   mask_actions=cfg.mask_actions,
+                                                   wrist_residual=cfg.wrist_residual,
+                                                   finger_residual=cfg.finger_residual),
+                               episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
+                               guidance=WristGuidance(gain=cfg.guidance_gain),
+                               prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
+                                                  close_guide=cfg.prior_close_guide))
+    return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
+                     graspxl=GraspXLReward(residual=cfg.residual_weight), roll=cfg.roll, early_stop=cfg.early_stop)

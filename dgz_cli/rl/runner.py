@@ -24,9 +24,6 @@ from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
 from dgz_cli.rl.storage import RolloutStorage
-from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
-                                   ControlContract, EpisodeProtocol, ObservationLayout, WristGuidance)
-from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward, RewardWeights
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
 
@@ -49,24 +46,6 @@ def model_config(cfg: TrainConfig) -> MagcnConfig:
     if cfg.init_log_std is not None:
         update["init_log_std"] = cfg.init_log_std
     return get_preset(cfg.preset).model_copy(update=update)
-
-
-def env_config(cfg: TrainConfig) -> EnvConfig:
-    """The env settings a run config asks for (the composition root builds the env from them)."""
-    mode = "joint" if cfg.ablation == "no_primitives" else "primitive"
-    layout = (ObservationLayout() if cfg.observation == "paper"
-              else ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS))
-    contract = ControlContract(observation=layout,
-                               action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
-                                                   mask_actions=cfg.mask_actions,
-                                                   wrist_residual=cfg.wrist_residual,
-                                                   finger_residual=cfg.finger_residual),
-                               episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
-                               guidance=WristGuidance(gain=cfg.guidance_gain),
-                               prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
-                                                  close_guide=cfg.prior_close_guide))
-    return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
-                     graspxl=GraspXLReward(residual=cfg.residual_weight), roll=cfg.roll, early_stop=cfg.early_stop)
 
 
 class Trainer:
