@@ -69,7 +69,7 @@ def measure(trainer, iterations: int) -> dict:
         profile = mujoco_profile(env)
     finally:
         env.close()
-    split = {k: round(sum(r[k] for r in rows), 2) for k in ("physics_s", "env_other_s", "policy_forward_s", "ppo_update_s")}
+    split = {k: round(sum(r[k] for r in rows), 4) for k in ("physics_s", "env_other_s", "policy_forward_s", "ppo_update_s")}
     transitions = iterations * cfg.steps_per_env * env.B
     return dict(
         benchmark="train", hands=list(cfg.hands), objects=cfg.objects, envs=env.B, steps_per_env=cfg.steps_per_env,

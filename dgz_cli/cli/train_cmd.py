@@ -152,8 +152,8 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
         terms = " ".join(f"{k[2:]} {v:.2f}" for k, v in row.items() if k.startswith("r_") and v is not None)
         console.print(f"it {row['iteration']:4d}/{cfg.iterations}  {row['steps_per_s']:7.0f} steps/s  success {sr}  "
                       f"return {row['mean_return'] if row['mean_return'] is None else round(row['mean_return'], 1)}  "
-                      f"{terms}  [dim]phys {row['physics_s']}s env {row['env_other_s']}s fwd {row['policy_forward_s']}s "
-                      f"upd {row['ppo_update_s']}s kl {row.get('kl', 0):.4f} lr {row.get('learning_rate', 0):.1e}[/]",
+                      f"{terms}  [dim]phys {row['physics_s']:.2f}s env {row['env_other_s']:.2f}s "
+                      f"fwd {row['policy_forward_s']:.2f}s upd {row['ppo_update_s']:.2f}s kl {row.get('kl', 0):.4f} lr {row.get('learning_rate', 0):.1e}[/]",
                       highlight=False)
         write_curve(trainer.history, out / "curve.png")
         write_csv(trainer.history, out / "history.csv")

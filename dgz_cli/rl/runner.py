@@ -213,8 +213,9 @@ class Trainer:
         self.iteration += 1
         wall = time.perf_counter() - t0
         row = dict(iteration=self.iteration, wall_s=round(wall, 2), steps_per_s=round(self.cfg.steps_per_env * env.B / wall, 1),
-                   physics_s=round(env.timing["physics_s"] - phys0, 2), env_other_s=round(env.timing["env_other_s"] - other0, 2),
-                   policy_forward_s=round(forward_s, 2), ppo_update_s=round(update_s, 2),
+                   # 0.1 ms resolution: a short benchmark iteration's split must not round to zero
+                   physics_s=round(env.timing["physics_s"] - phys0, 4), env_other_s=round(env.timing["env_other_s"] - other0, 4),
+                   policy_forward_s=round(forward_s, 4), ppo_update_s=round(update_s, 4),
                    episodes=len(episodes), instabilities=env.instabilities,
                    mean_step_reward=reward_sum / self.cfg.steps_per_env,
                    success_rate=float(np.mean([e["success"] for e in episodes])) if episodes else None,
