@@ -85,10 +85,11 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
             cfg = env_config(TrainConfig(**options))
         except ValidationError as exc:
             error = exc.errors()[0]
-            option = {"guidance_gain": "--guidance", "physics_hz": "--physics-hz"}.get(error["loc"][0], "--roll")
-            value = {"--guidance": guidance, "--physics-hz": physics_hz}.get(option, roll)
-            example = {"--guidance": "--guidance 0.05", "--physics-hz": "--physics-hz 200"}.get(option, "--roll narrow")
-            raise DgzError(f"{option} {value}: {error['msg'].removeprefix('Value error, ')}", f"e.g. {example}") from None
+            option, value, example = {"guidance_gain": ("--guidance", guidance, "0.05"),
+                                      "physics_hz": ("--physics-hz", physics_hz, "200")}.get(
+                error["loc"][0], ("--roll", roll, "narrow"))
+            raise DgzError(f"{option} {value}: {error['msg'].removeprefix('Value error, ')}",
+                           f"e.g. {option} {example}") from None
     if approach_cone is not None:  # the start state, a protocol choice: it applies to a checkpoint too
         cfg = cfg.model_copy(update=dict(approach_cone=approach_cone))
     if meta is not None:
