@@ -1,11 +1,13 @@
 """The wrist guidance alone, in variants (issue 11, docs/training.md after E9): the closing prior with a zero
 residual (E6's contract: guidance 0.05, close_guide 0.08, narrow roll, Markov layout) on the ladder's 10 objects x
 3 slots, with the guidance (a) as is, (b) scaled by 0 or 0.3 once the prior closes, (c) off inside a 3 or 5 cm dead
-band of the guidance error. Prints success and the failure counts (pushed: > 5 cm during the grasp phase).
+band of the guidance error. Prints success and the failed episodes per class of `dgz eval`
+(`dgz_cli.sim.evaluate.failure_class`, the protocol's lift height and success fraction).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_guidance_variants.py HANDS [VARIANTS]"""
 import json, sys
 import numpy as np
 from dgz_cli.sim.env import GraspEnv
+from dgz_cli.sim.evaluate import FAILURE_CLASSES, failure_class
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ClosingPrior, ControlContract,
@@ -39,12 +41,12 @@ def run(spec, variant, slots=3):
         for b, e in info["episode"].items():
             done.setdefault(b, e)
     env.close()
-    cls = {"pushed": 0, "notlifted": 0, "never": 0}
+    ep = env.cfg.contract.episode
+    cls = dict.fromkeys(FAILURE_CLASSES, 0)
     for e in done.values():
-        if e["success"]: continue
-        if not e["touched"]: cls["never"] += 1
-        elif e["pushed"] or e["max_push"] > 0.05: cls["pushed"] += 1
-        else: cls["notlifted"] += 1
+        why = failure_class(e, ep.lift_height, ep.success_fraction)
+        if why is not None:
+            cls[why] += 1
     return {"success": float(np.mean([e["success"] for e in done.values()])), **cls}
 
 V = {"base": ("none", 0), "hold0": ("hold_on_close", 0.0), "hold.3": ("hold_on_close", 0.3),
