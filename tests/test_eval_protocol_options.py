@@ -5,7 +5,6 @@ next to the paper's numbers and the scripted baseline."""
 from __future__ import annotations
 
 import ast
-import inspect
 import io
 import json
 import math
@@ -28,6 +27,7 @@ from dgz_cli.spec.errors import SpecError
 from dgz_cli.spec.io import load_spec
 from dgz_cli.spec.models import FEATURE_NAMES
 from dgz_cli.spec.transform import LENGTH_FEATURES, scale_lengths
+from conftest import asset_root, needs_assets
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = Path("/work/shared/paper/dexgrasp-zero.tex")
@@ -355,21 +355,10 @@ def test_table_from_the_command_line(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ dgz eval options
-def _eval_has_options() -> bool:
-    from dgz_cli.cli import sim_cmd
-
-    return "feature_scale" in inspect.signature(sim_cmd.evaluate).parameters
-
-
-needs_wiring = pytest.mark.skipif(not _eval_has_options(), reason="cli/sim_cmd.evaluate has no feature_scale/"
-                                  "approach_cone yet (issue 15: the wiring patch to sim_cmd.py is pending)")
-
-
 def _dgz(*args, cwd):
     return subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", *args], cwd=cwd, capture_output=True, text=True)
 
 
-@needs_wiring
 def test_eval_records_feature_scale_start_state_and_onset(tmp_path):
     js, cs = tmp_path / "r.json", tmp_path / "r.csv"
     res = _dgz("eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1", "--feature-scale", "2",
@@ -385,7 +374,6 @@ def test_eval_records_feature_scale_start_state_and_onset(tmp_path):
     assert data["protocol"]["physics_hz"] == 400.0
 
 
-@needs_wiring
 def test_eval_physics_hz_sets_the_scripted_env(tmp_path):
     """The physics_hz ±0.03 check (issue 11, lever 9) evaluates the scripted grasp at a lower physics rate: the
     rate reaches the simulator and the record, and the result differs from 400 Hz (same start states)."""
@@ -401,7 +389,24 @@ def test_eval_physics_hz_sets_the_scripted_env(tmp_path):
     assert rows["400"] != rows["100"]  # another physics step gives other trajectories
 
 
-@needs_wiring
+@needs_assets()
+def test_eval_thumb_open_sets_the_scripted_start_pose(tmp_path):
+    """`--thumb-open` (issue 11, E11) starts the scripted grasp from the contract's thumb-open pose: recorded in
+    the protocol, and other trajectories than the flat open hand's on the same start states (the Inspire's
+    thumb yaw is its ABD joint, at rest 0 and +ABD limit 1.308 rad)."""
+    out = {}
+    for f in ("0", "1"):
+        js = tmp_path / f"{f}.json"
+        res = _dgz("eval", "--hand", "inspire", "--objects", "sphere", "--trials", "2", "--thumb-open", f,
+                   "--asset-root", str(asset_root().resolve()),
+                   "--csv", str(tmp_path / f"{f}.csv"), "--json", str(js), cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        out[f] = json.loads(js.read_text())
+        assert out[f]["protocol"]["thumb_open"] == float(f) and out[f]["protocol"]["thumb_open_primitives"] == ["ABD"]
+    rows = {f: (tmp_path / f"{f}.csv").read_text().splitlines()[1:] for f in out}
+    assert rows["0"] != rows["1"]
+
+
 @pytest.mark.parametrize("args,message", [
     (("--feature-scale", "0"), "--feature-scale"),
     (("--feature-scale", "nan"), "--feature-scale"),
@@ -413,6 +418,9 @@ def test_eval_physics_hz_sets_the_scripted_env(tmp_path):
     (("--guidance", "1.5"), "--guidance"),  # a gain, in [0, 1]
     (("--guidance", "-0.05"), "--guidance"),
     (("--policy", "dgz-cpu-residual", "--physics-hz", "200"), "--physics-hz"),  # a checkpoint runs its own
+    (("--thumb-open", "1.5"), "--thumb-open"),  # a fraction of the thumb's opening range
+    (("--thumb-open", "-1"), "--thumb-open"),
+    (("--policy", "dgz-cpu-residual", "--thumb-open", "1"), "--thumb-open"),
 ])
 def test_eval_refuses_bad_protocol_options(tmp_path, args, message):
     res = _dgz("eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1", *args, cwd=tmp_path)

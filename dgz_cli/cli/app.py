@@ -231,6 +231,10 @@ def evaluate(
     physics_hz: Optional[float] = typer.Option(None, "--physics-hz", help="with --policy scripted: physics rate, a "
                                                "whole multiple of the 20 Hz control rate (default: the contract's "
                                                "400; a checkpoint uses its own)"),
+    thumb_open: Optional[float] = typer.Option(None, "--thumb-open", help="with --policy scripted: start pose with "
+                                               "the thumb's ABD joints this fraction (0 to 1) of the way to their "
+                                               "+ABD limit; 1 = the paper's pre-grasp (default: 0, the flat open "
+                                               "hand; a checkpoint uses its own)"),
     video: Optional[Path] = typer.Option(None, "--video", help="also render episodes offscreen into this folder: "
                                          "MP4 per episode + contact_sheet.png (needs EGL or OSMesa; skipped with a "
                                          "message where there is none)"),
@@ -269,7 +273,7 @@ def evaluate(
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, roll=roll, video=video,
                                       video_episodes=video_episodes, perturb=perturb, feature_scale=feature_scale,
-                                      approach_cone=approach_cone, physics_hz=physics_hz))
+                                      approach_cone=approach_cone, physics_hz=physics_hz, thumb_open=thumb_open))
 
 
 @assets_app.command("fetch")

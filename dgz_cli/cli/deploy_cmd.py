@@ -1,6 +1,6 @@
 """`dgz deploy`: run a grasp policy on a real hand (or its pty fake, or the MuJoCo sim) safely.
 
-connect hand and arm → identity check → confirm → slow ramp to the thumb-open start pose → the policy's
+connect hand and arm → identity check → confirm → slow ramp to the contract's start pose → the policy's
 control-contract episode (grasp, lift, hold at its rate; wrist command → arm interface: ``none`` logs it,
 ``sim`` an ideal arm, ``piper`` an AgileX Piper) → arm holds, hand holds or relaxes. First Ctrl-C stops
 safely, a second relaxes at once. ``--hand sim`` runs the evaluation scene (MuJoCo) behind the same loop.
@@ -186,9 +186,7 @@ def run(hand: str | None, port: str | None, policy: str, object_points: Path | N
             from dgz_cli.runtime.observation import grasp_offset_of
 
             grasp_offset = grasp_offset_of(spec, asset_root)
-        start, note = deploy_start_pose(spec, overrides, asset_root)
-        if note:
-            _warn(console, note)
+        start = deploy_start_pose(spec, contract, overrides)
         arm_if = _make_arm(arm, spec, asset_root, arm_port)
     needs = [] if simulated else privileged_needs(pol)
     if needs:

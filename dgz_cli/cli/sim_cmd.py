@@ -36,7 +36,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
              guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2,
              perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
-             physics_hz: float | None = None) -> int:
+             physics_hz: float | None = None, thumb_open: float | None = None) -> int:
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
     from dgz_cli.spec.catalog import resolve_spec
@@ -67,9 +67,9 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         if seen:
             raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
                            f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
-    if meta is not None and (guidance != 0.0 or roll != "uniform" or physics_hz is not None):
-        raise DgzError("--guidance, --roll and --physics-hz set the scripted policy's env; a checkpoint runs under "
-                       "its own", "drop --guidance/--roll/--physics-hz")
+    if meta is not None and (guidance != 0.0 or roll != "uniform" or physics_hz is not None or thumb_open is not None):
+        raise DgzError("--guidance, --roll, --physics-hz and --thumb-open set the scripted policy's env; a checkpoint "
+                       "runs under its own", "drop --guidance/--roll/--physics-hz/--thumb-open")
     if roll not in ("uniform", "narrow"):
         raise DgzError(f"--roll {roll!r} is not supported", "use --roll uniform or --roll narrow")
     if meta is not None:
@@ -80,13 +80,15 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         from dgz_cli.rl.config import TrainConfig, env_config
 
         # the scripted env is the one `dgz train` would build for the same options (one home: env_config)
-        options = dict(guidance_gain=guidance, roll=roll) | ({} if physics_hz is None else dict(physics_hz=physics_hz))
+        options = (dict(guidance_gain=guidance, roll=roll) | ({} if physics_hz is None else dict(physics_hz=physics_hz))
+                   | ({} if thumb_open is None else dict(thumb_open=thumb_open)))
         try:
             cfg = env_config(TrainConfig(**options))
         except ValidationError as exc:
             error = exc.errors()[0]
             option, value, example = {"guidance_gain": ("--guidance", guidance, "0.05"),
-                                      "physics_hz": ("--physics-hz", physics_hz, "200")}.get(
+                                      "physics_hz": ("--physics-hz", physics_hz, "200"),
+                                      "thumb_open": ("--thumb-open", thumb_open, "1")}.get(
                 error["loc"][0], ("--roll", roll, "narrow"))
             raise DgzError(f"{option} {value}: {error['msg'].removeprefix('Value error, ')}",
                            f"e.g. {option} {example}") from None
@@ -124,7 +126,9 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
                     guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll,
                     physics_hz=round(1.0 / ep.physics_dt, 6),
                     hardware_view=None if view is None else view.model_dump(), feature_scale=feature_scale,
-                    approach_distance_m=cfg.approach_distance, approach_cone_rad=cfg.approach_cone)
+                    approach_distance_m=cfg.approach_distance, approach_cone_rad=cfg.approach_cone,
+                    thumb_open=cfg.contract.start.thumb_open,
+                    thumb_open_primitives=list(cfg.contract.start.thumb_primitives))
     table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "
                         f"kept) and held {ep.hold_s} s; {trials} trials per object, seed {seed}")
     table.add_column("hand")

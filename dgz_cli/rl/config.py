@@ -8,7 +8,8 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
-                                   ControlContract, EpisodeProtocol, ObservationLayout, WristGuidance)
+                                   ControlContract, EpisodeProtocol, ObservationLayout, StartPose,
+                                   WristGuidance)
 from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward, RewardWeights
 
 ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
@@ -95,6 +96,10 @@ class TrainConfig(BaseModel):
                              "full protocol)")
     physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "
                               "200 halves the physics cost)")
+    thumb_open: float = Field(0.0, ge=0, le=1, description="start pose: the thumb's opening joints this fraction of "
+                              "the way to their + limit (contract start.thumb_open; 1 = the paper's pre-grasp)")
+    thumb_open_primitives: tuple[Literal["ABD", "ROT"], ...] = Field(("ABD",), min_length=1, description="the "
+                                                                     "thumb's opening joints (contract start.thumb_primitives)")
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     ppo: PPOConfig = PPOConfig()
 
@@ -110,7 +115,7 @@ class TrainConfig(BaseModel):
 def env_config(cfg: TrainConfig) -> EnvConfig:
     """The env a run config asks for: the one place a TrainConfig becomes a control contract, a reward and a
     start-state protocol. ``dgz train`` builds its env from it and ``dgz eval --policy scripted`` its
-    ``--guidance``/``--roll``/``--physics-hz`` env, so both agree on the same options by construction."""
+    ``--guidance``/``--roll``/``--physics-hz``/``--thumb-open`` env, so both agree on the same options by construction."""
     mode = "joint" if cfg.ablation == "no_primitives" else "primitive"
     layout = (ObservationLayout() if cfg.observation == "paper"
               else ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS))
@@ -122,6 +127,7 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
                                guidance=WristGuidance(gain=cfg.guidance_gain),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
-                                                  close_guide=cfg.prior_close_guide))
+                                                  close_guide=cfg.prior_close_guide),
+                               start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
                      graspxl=GraspXLReward(residual=cfg.residual_weight), roll=cfg.roll, early_stop=cfg.early_stop)

@@ -28,7 +28,7 @@ class MhMap:
 
 
 def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None, base: np.ndarray | None = None) -> np.ndarray:
-    """The pose the hand ramps to before the policy runs: ``base`` (L,) if given (the thumb-open pose of
+    """The pose the hand ramps to before the policy runs: ``base`` (L,) if given (the control contract's start pose,
     :mod:`dgz_cli.runtime.pregrasp`), else every joint at 0 clipped into its limits (the URDF zero is the
     flat open hand on the shipped hands); then the hand file's ``start_pose`` entries, clipped."""
     lo = np.array([j.lower for j in spec.joints], dtype=float)

@@ -182,7 +182,7 @@ class GraspEnv:
         s = self.slots[b]
         s.reset(rng)
         self.targets[b] = 0.0
-        self.targets[b, :s.n_joints] = s.idx.rest_q
+        self.targets[b, :s.n_joints] = s.idx.start_q
         self.wrist_target[b] = s.wrist_q0
         self.t[b] = 0
         self.ok_hold[b] = True

@@ -47,7 +47,8 @@ class SceneIndex:
     object_qadr: int
     object_dadr: int
     cloud: np.ndarray  # (P, 3) object frame
-    rest_q: np.ndarray  # (L,)
+    rest_q: np.ndarray  # (L,) the flat open hand: palm frame, anchors and closing axis are measured here
+    start_q: np.ndarray  # (L,) the contract's start pose: every episode resets the hand to it
     palm_axes_w: np.ndarray  # (3, 3) palm frame axes (f, l, n) in the wrist mount frame, open hand
     palm_center_w: np.ndarray  # (3,) palm centre in the wrist mount frame
     grasp_offset: np.ndarray  # (3,) palm centre → the open hand's node centroid, palm frame
@@ -220,6 +221,7 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         object_dadr=int(model.jnt_dofadr[obj_j]),
         cloud=surface_points(model, obj_body, cfg.contract.observation.point_cloud, seed),
         rest_q=rest_q,
+        start_q=cfg.contract.start.pose(spec),
         palm_axes_w=palm_axes_w,
         palm_center_w=palm_center_w,
         grasp_offset=palm_axes_w.T @ (anchors.mean(0) - palm_center_w),

@@ -72,10 +72,10 @@ class Slot:
         lowest = (idx.cloud @ rot.T)[:, 2].min()
         d.qpos[idx.object_qadr:idx.object_qadr + 3] = [0.0, 0.0, -lowest + 0.002]
         d.qpos[idx.object_qadr + 3:idx.object_qadr + 7] = _mat_to_quat(rot)
-        d.qpos[idx.hand_qadr] = idx.rest_q
+        d.qpos[idx.hand_qadr] = idx.start_q
         d.ctrl[:] = 0.0
         d.ctrl[:3] = d.qpos[idx.wrist_qadr[:3]]
-        d.ctrl[6:6 + self.n_joints] = idx.rest_q
+        d.ctrl[6:6 + self.n_joints] = idx.start_q
         mj.mj_step(m, d, nstep=max(1, int(round(cfg.settle_s / cfg.contract.episode.physics_dt))))
         d.qvel[:] = 0.0
         obj_rot = d.xmat[idx.object_body].reshape(3, 3)

@@ -240,6 +240,33 @@ class EpisodeProtocol(_Frozen):
         return self
 
 
+class StartPose(_Frozen):
+    """The hand's joint pose when an episode starts: the pose every simulated episode resets to and the pose
+    ``dgz deploy`` ramps the real hand to before the policy's first step (then the hand file's ``start_pose``
+    entries). Every joint is at its rest value (0 clipped into its limits: the flat open hand), except the
+    thumb's opening joints: the joints of ``finger == "thumb"`` nodes whose primitive is in ``thumb_primitives``
+    move ``thumb_open`` of the way from rest to the limit in their + direction (design.md: +ABD opens the thumb
+    away from the index, +ROT turns its pad toward the fingers). ``thumb_open`` 1 with ABD is the paper's
+    pre-grasp (Supp. S2: "setting its thumb-opening DoF to the maximum opening angle for each hand")."""
+
+    thumb_open: float = Field(0.0, ge=0, le=1, description="fraction of the thumb's opening range (0 = the rest "
+                                                            "pose, as every policy before issue 11's E11 was trained)")
+    thumb_primitives: tuple[Literal["ABD", "ROT"], ...] = Field(("ABD",), min_length=1)
+
+    def pose(self, spec) -> np.ndarray:
+        """(L,) joint values in ``spec.joints`` order for a HandSpec ``spec``."""
+        lo = np.array([r.lower for r in spec.joints], dtype=float)
+        hi = np.array([r.upper for r in spec.joints], dtype=float)
+        q = np.clip(0.0, lo, hi)
+        if self.thumb_open == 0.0:
+            return q
+        thumb = {n.id for n in spec.nodes if n.finger == "thumb"}
+        for i, r in enumerate(spec.joints):
+            if r.node in thumb and r.primitive.value in self.thumb_primitives:
+                q[i] += self.thumb_open * ((hi[i] if r.sign > 0 else lo[i]) - q[i])
+        return q
+
+
 class ControlContract(_Frozen):
     """Observation layout + action layout + episode protocol, versioned; saved in every checkpoint."""
 
@@ -249,6 +276,7 @@ class ControlContract(_Frozen):
     episode: EpisodeProtocol = EpisodeProtocol()
     guidance: WristGuidance = WristGuidance()
     prior: ClosingPrior = ClosingPrior()
+    start: StartPose = StartPose()
 
     @model_validator(mode="after")
     def _prior_needs_phase(self) -> "ControlContract":

@@ -1,0 +1,70 @@
+"""Thumb pre-shaping under the closing prior (issue 11, docs/training.md after E10): E6's contract (guidance 0.05,
+close_guide 0.08, narrow roll, Markov layout) with a zero residual on the ladder's 10 objects x 3 slots, and during
+the first K steps of the approach an extra action on the thumb's non-FLEX primitives, in the sign conventions of
+docs (+ROT turns the thumb pad toward the fingers; +ABD opens the thumb away from the index). A unit action moves a
+joint by the contract's finger_scale per step, so K steps move it by K x 0.015 rad, within its limits. The start.F
+variants instead start the hand in the contract's StartPose(thumb_open=F) (startFrot: its ABD and ROT joints).
+Prints success and the failed episodes per class of `dgz eval` (`dgz_cli.sim.evaluate.failure_class`).
+Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_thumb_preshape.py HANDS [VARIANTS]"""
+import sys
+
+import numpy as np
+
+from dgz_cli.sim.env import GraspEnv
+from dgz_cli.sim.evaluate import FAILURE_CLASSES, failure_class
+from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.spec.catalog import resolve_spec
+from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ClosingPrior, ControlContract,
+                                   ObservationLayout, StartPose, WristGuidance)
+from dgz_cli.spec.envconfig import EnvConfig
+from dgz_cli.spec.io import load_spec
+
+OBJS = ("004_sugar_box,005_tomato_soup_can,006_mustard_bottle,011_banana,013_apple,017_orange,025_mug,"
+        "055_baseball,061_foam_brick,077_rubiks_cube")
+LAYOUT = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS)
+ABD, ROT = 1, 2
+# name: ({primitive: unit action on every thumb node}, K steps)
+VARIANTS = {"base": ({}, 0), "rot+": ({ROT: 1.0}, 35), "abd-": ({ABD: -1.0}, 35), "abd+": ({ABD: 1.0}, 35),
+            "rot+abd-": ({ROT: 1.0, ABD: -1.0}, 35), "abd+20": ({ABD: 1.0}, 20), "abd+70": ({ABD: 1.0}, 70),
+            "rot+abd+": ({ROT: 1.0, ABD: 1.0}, 35), "start.5": ({}, 0, 0.5), "start1": ({}, 0, 1.0),
+            "start1rot": ({}, 0, 1.0, ("ABD", "ROT")), "start.5rot": ({}, 0, 0.5, ("ABD", "ROT"))}
+
+
+def run(spec, variant, slots=3):
+    prims, steps, *opening = variant
+    start = StartPose(thumb_open=opening[0], thumb_primitives=opening[1] if len(opening) > 1 else ("ABD",)) \
+        if opening else StartPose()
+    contract = ControlContract(observation=LAYOUT, guidance=WristGuidance(gain=0.05),
+                               prior=ClosingPrior(enabled=True, close_guide=0.08), start=start)
+    env = GraspEnv([(spec, o) for o in resolve_objects(OBJS)] * slots, EnvConfig(contract=contract, roll="narrow"),
+                   threads=2)
+    act = contract.action
+    preshape = np.zeros(env.action_dim)
+    for i, node in enumerate(spec.nodes):
+        if node.finger == "thumb":
+            for p, value in prims.items():
+                preshape[act.wrist_dim + i * act.n_prim + p] = value
+    env.reset(0)
+    done = {}
+    while len(done) < env.B:
+        a = np.where((env.t < steps)[:, None], preshape[None, :], 0.0)
+        _, _, _, _, info = env.step(a)
+        for b, e in info["episode"].items():
+            done.setdefault(b, e)
+    env.close()
+    ep = contract.episode
+    cls = dict.fromkeys(FAILURE_CLASSES, 0)
+    for e in done.values():
+        why = failure_class(e, ep.lift_height, ep.success_fraction)
+        if why is not None:
+            cls[why] += 1
+    return {"success": round(float(np.mean([e["success"] for e in done.values()])), 3), **cls}
+
+
+if __name__ == "__main__":
+    hands = sys.argv[1].split(",")
+    names = sys.argv[2].split(",") if len(sys.argv) > 2 else list(VARIANTS)
+    for hand in hands:
+        spec = load_spec(resolve_spec(hand))
+        for name in names:
+            print(hand, name, run(spec, VARIANTS[name]), flush=True)
