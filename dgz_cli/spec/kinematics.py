@@ -165,8 +165,3 @@ class HandKinematics:
         """(N, 3) node anchor points in the palm frame for joint values ``q`` (L,)."""
         self.pose(q)
         return to_frame(self.anchors_root(), *self.palm_frame())
-
-    def fingertips(self, q: np.ndarray) -> dict[str, np.ndarray]:
-        """Finger class → (3,) fingertip anchor in the palm frame (fingertip nodes only)."""
-        pts = self.anchors_palm(q)
-        return {n.finger: pts[i] for i, n in enumerate(self.spec.nodes) if n.type == "fingertip"}
