@@ -257,7 +257,7 @@ class StartPose(_Frozen):
         """(L,) joint values in ``spec.joints`` order for a HandSpec ``spec``."""
         lo = np.array([r.lower for r in spec.joints], dtype=float)
         hi = np.array([r.upper for r in spec.joints], dtype=float)
-        q = np.clip(0.0, lo, hi)
+        q = spec.rest_pose()  # the one definition of the rest pose (spec.models.rest_pose)
         if self.thumb_open == 0.0:
             return q
         thumb = {n.id for n in spec.nodes if n.finger == "thumb"}
