@@ -6,22 +6,14 @@ joint by the contract's finger_scale per step, so K steps move it by K x 0.015 r
 variants instead start the hand in the contract's StartPose(thumb_open=F) (startFrot: its ABD and ROT joints).
 Prints success and the failed episodes per class of `dgz eval` (`dgz_cli.sim.evaluate.failure_class`).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_thumb_preshape.py HANDS [VARIANTS]"""
-import sys
-
 import numpy as np
+from probe_common import LAYOUT, OBJS, main, run_episodes
 
 from dgz_cli.sim.env import GraspEnv
-from dgz_cli.sim.evaluate import FAILURE_CLASSES, failure_class
 from dgz_cli.sim.objects import resolve_objects
-from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ClosingPrior, ControlContract,
-                                   ObservationLayout, StartPose, WristGuidance)
+from dgz_cli.spec.contract import ClosingPrior, ControlContract, StartPose, WristGuidance
 from dgz_cli.spec.envconfig import EnvConfig
-from dgz_cli.spec.io import load_spec
 
-OBJS = ("004_sugar_box,005_tomato_soup_can,006_mustard_bottle,011_banana,013_apple,017_orange,025_mug,"
-        "055_baseball,061_foam_brick,077_rubiks_cube")
-LAYOUT = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS)
 ABD, ROT = 1, 2
 # name: ({primitive: unit action on every thumb node}, K steps)
 VARIANTS = {"base": ({}, 0), "rot+": ({ROT: 1.0}, 35), "abd-": ({ABD: -1.0}, 35), "abd+": ({ABD: 1.0}, 35),
@@ -44,27 +36,8 @@ def run(spec, variant, slots=3):
         if node.finger == "thumb":
             for p, value in prims.items():
                 preshape[act.wrist_dim + i * act.n_prim + p] = value
-    env.reset(0)
-    done = {}
-    while len(done) < env.B:
-        a = np.where((env.t < steps)[:, None], preshape[None, :], 0.0)
-        _, _, _, _, info = env.step(a)
-        for b, e in info["episode"].items():
-            done.setdefault(b, e)
-    env.close()
-    ep = contract.episode
-    cls = dict.fromkeys(FAILURE_CLASSES, 0)
-    for e in done.values():
-        why = failure_class(e, ep.lift_height, ep.success_fraction)
-        if why is not None:
-            cls[why] += 1
-    return {"success": round(float(np.mean([e["success"] for e in done.values()])), 3), **cls}
+    return run_episodes(env, lambda e: np.where((e.t < steps)[:, None], preshape[None, :], 0.0))
 
 
 if __name__ == "__main__":
-    hands = sys.argv[1].split(",")
-    names = sys.argv[2].split(",") if len(sys.argv) > 2 else list(VARIANTS)
-    for hand in hands:
-        spec = load_spec(resolve_spec(hand))
-        for name in names:
-            print(hand, name, run(spec, VARIANTS[name]), flush=True)
+    main(VARIANTS, run)
