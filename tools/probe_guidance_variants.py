@@ -5,12 +5,9 @@ band of the guidance error. Prints success and the failed episodes per class of 
 (`dgz_cli.sim.evaluate.failure_class`, the protocol's lift height and success fraction).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_guidance_variants.py HANDS [VARIANTS]"""
 import numpy as np
-from probe_common import LAYOUT, OBJS, main, run_episodes
+from probe_common import LAYOUT, main, probe
 
-from dgz_cli.sim.env import GraspEnv
-from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.contract import ClosingPrior, ControlContract, WristGuidance
-from dgz_cli.spec.envconfig import EnvConfig
 
 # name: (kind, value): "hold_on_close" scales the guidance by value once the prior closes; "deadband" turns it off
 # while the guidance error is below value (m)
@@ -18,28 +15,28 @@ VARIANTS = {"base": ("none", 0), "hold0": ("hold_on_close", 0.0), "hold.3": ("ho
             "dead.03": ("deadband", 0.03), "dead.05": ("deadband", 0.05)}
 
 
-def run(spec, variant, slots=3):
+def run(spec, variant):
     contract = ControlContract(observation=LAYOUT, guidance=WristGuidance(gain=0.05),
                                prior=ClosingPrior(enabled=True, close_guide=0.08))
-    env = GraspEnv([(spec, o) for o in resolve_objects(OBJS)] * slots, EnvConfig(contract=contract, roll="narrow"),
-                   threads=2)
-    base = env.guidance
     kind, value = variant
 
-    def guided(glob):
-        g = base(glob)
-        prior = contract.prior_action(env._nodes, glob, env.mask, env.node_valid)
-        closing = prior[:, contract.action.wrist_dim::contract.action.n_prim].any(-1)
-        err = np.linalg.norm(glob[:, LAYOUT.global_col("guide")].astype(float) * LAYOUT.target_scale, axis=-1)
-        if kind == "hold_on_close":
-            g[closing] *= value
-        if kind == "deadband":
-            g[err < value] = 0.0
-        return g
+    def patch_guidance(env):
+        base = env.guidance
 
-    env.guidance = guided
-    return run_episodes(env, lambda e: np.zeros((e.B, e.action_dim)))
+        def guided(glob):
+            g = base(glob)
+            prior = contract.prior_action(env._nodes, glob, env.mask, env.node_valid)
+            closing = prior[:, contract.action.wrist_dim::contract.action.n_prim].any(-1)
+            err = np.linalg.norm(glob[:, LAYOUT.global_col("guide")].astype(float) * LAYOUT.target_scale, axis=-1)
+            if kind == "hold_on_close":
+                g[closing] *= value
+            if kind == "deadband":
+                g[err < value] = 0.0
+            return g
 
+        env.guidance = guided
+
+    return probe(spec, contract, lambda e: np.zeros((e.B, e.action_dim)), setup=patch_guidance)
 
 if __name__ == "__main__":
     main(VARIANTS, run)

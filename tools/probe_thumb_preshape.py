@@ -7,12 +7,9 @@ variants instead start the hand in the contract's StartPose(thumb_open=F) (start
 Prints success and the failed episodes per class of `dgz eval` (`dgz_cli.sim.evaluate.failure_class`).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_thumb_preshape.py HANDS [VARIANTS]"""
 import numpy as np
-from probe_common import LAYOUT, OBJS, main, run_episodes
+from probe_common import LAYOUT, main, probe
 
-from dgz_cli.sim.env import GraspEnv
-from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.contract import ClosingPrior, ControlContract, StartPose, WristGuidance
-from dgz_cli.spec.envconfig import EnvConfig
 
 ABD, ROT = 1, 2
 # name: ({primitive: unit action on every thumb node}, K steps)
@@ -22,21 +19,19 @@ VARIANTS = {"base": ({}, 0), "rot+": ({ROT: 1.0}, 35), "abd-": ({ABD: -1.0}, 35)
             "start1rot": ({}, 0, 1.0, ("ABD", "ROT")), "start.5rot": ({}, 0, 0.5, ("ABD", "ROT"))}
 
 
-def run(spec, variant, slots=3):
+def run(spec, variant):
     prims, steps, *opening = variant
     start = StartPose(thumb_open=opening[0], thumb_primitives=opening[1] if len(opening) > 1 else ("ABD",)) \
         if opening else StartPose()
     contract = ControlContract(observation=LAYOUT, guidance=WristGuidance(gain=0.05),
                                prior=ClosingPrior(enabled=True, close_guide=0.08), start=start)
-    env = GraspEnv([(spec, o) for o in resolve_objects(OBJS)] * slots, EnvConfig(contract=contract, roll="narrow"),
-                   threads=2)
     act = contract.action
-    preshape = np.zeros(env.action_dim)
+    preshape = np.zeros(act.dim(len(spec.nodes)))  # a one-hand env's action_dim
     for i, node in enumerate(spec.nodes):
         if node.finger == "thumb":
             for p, value in prims.items():
                 preshape[act.wrist_dim + i * act.n_prim + p] = value
-    return run_episodes(env, lambda e: np.where((e.t < steps)[:, None], preshape[None, :], 0.0))
+    return probe(spec, contract, lambda e: np.where((e.t < steps)[:, None], preshape[None, :], 0.0))
 
 
 if __name__ == "__main__":
