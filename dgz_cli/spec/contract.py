@@ -255,15 +255,13 @@ class StartPose(_Frozen):
 
     def pose(self, spec) -> np.ndarray:
         """(L,) joint values in ``spec.joints`` order for a HandSpec ``spec``."""
-        lo = np.array([r.lower for r in spec.joints], dtype=float)
-        hi = np.array([r.upper for r in spec.joints], dtype=float)
         q = spec.rest_pose()  # the one definition of the rest pose (spec.models.rest_pose)
         if self.thumb_open == 0.0:
             return q
         thumb = {n.id for n in spec.nodes if n.finger == "thumb"}
         for i, r in enumerate(spec.joints):
             if r.node in thumb and r.primitive.value in self.thumb_primitives:
-                q[i] += self.thumb_open * ((hi[i] if r.sign > 0 else lo[i]) - q[i])
+                q[i] += self.thumb_open * ((r.upper if r.sign > 0 else r.lower) - q[i])
         return q
 
 
