@@ -1,30 +1,15 @@
-"""Measure the closing prior alone (zero residual) against the guided scripted grasp on LEAP and Allegro
-(docs/training.md, lever 6). Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_closing_prior.py"""
+"""The closing prior alone (zero residual; E2's rule: gap < 3 cm or from step `close_step`) against the guided
+scripted grasp on LEAP and Allegro, 5 YCB objects × 2 slots × 2 episodes (docs/training.md, lever 6).
+Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_closing_prior.py [HANDS] [VARIANTS]"""
+from probe_common import main
+from probe_prior_variants import run
 
-import numpy as np, sys
-from dgz_cli.spec.contract import *
-from dgz_cli.spec.envconfig import EnvConfig
-from dgz_cli.sim.env import GraspEnv
-from dgz_cli.sim.objects import resolve_objects
-from dgz_cli.sim.scripted import ScriptedGrasp
-from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.io import load_spec
-objs=resolve_objects("025_mug,011_banana,004_sugar_box,013_apple,077_rubiks_cube")
-L=ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS)
-def run(spec, c, scripted=False):
-    env=GraspEnv([(spec,o) for o in objs]*2, EnvConfig(contract=c, roll="narrow"), threads=2)
-    obs=env.reset(0); succ=[]; pol=ScriptedGrasp(env.N, env.grasp_offset, c) if scripted else None
-    if pol: pol.reset(None)
-    for t in range(190*2):
-        a = pol.act(obs) if pol else np.zeros((env.B, env.action_dim))
-        obs,r,te,tr,info=env.step(a)
-        succ += [e["success"] for e in info["episode"].values()]
-        if pol and info["episode"]:
-            m=np.zeros(env.B,bool); m[list(info["episode"])]=True; pol.reset(m)
-    env.close(); return round(float(np.mean(succ)),2)
-g=WristGuidance(gain=0.05)
-for hand in ("leap","allegro"):
-    spec=load_spec(resolve_spec(hand))
-    print(hand, "scripted+guid", run(spec, ControlContract(observation=L, guidance=g), True), flush=True)
-    for cs, gap in ((50,0.03),(80,0.03),(80,0.05)):
-        print(hand, "prior", cs, gap, run(spec, ControlContract(observation=L, guidance=g, prior=ClosingPrior(enabled=True, close_step=cs, close_gap=gap))), flush=True)
+from dgz_cli.spec.contract import ClosingPrior
+
+OBJECTS = "025_mug,011_banana,004_sugar_box,013_apple,077_rubiks_cube"
+VARIANTS = {"scripted+guid": None,
+            **{f"prior {step} {gap}": ClosingPrior(enabled=True, close_step=step, close_gap=gap)
+               for step, gap in ((50, 0.03), (80, 0.03), (80, 0.05))}}
+
+if __name__ == "__main__":
+    main(VARIANTS, lambda spec, prior: run(spec, prior, objects=OBJECTS, trials=2), "leap,allegro")

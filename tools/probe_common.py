@@ -1,6 +1,7 @@
-"""What the zero-residual probes in tools/ share: the ladder's 10 objects, E6's Markov layout, one episode per
-(object, slot) through `dgz eval`'s own loop and summary (`dgz_cli.sim.evaluate.run_episodes`, `summarize`), and
-the per-hand command line `HANDS [VARIANTS]`."""
+"""What the probes in tools/ share: the ladder's 10 objects, E6's Markov layout, episodes on (object, slot) pairs
+through `dgz eval`'s own loop and summary (`dgz_cli.sim.evaluate.run_episodes`, `summarize`), either a fixed
+action rule on a zero residual or the scripted grasp, and the per-hand command line `HANDS [VARIANTS]`."""
+import json
 import sys
 from collections.abc import Callable
 
@@ -9,6 +10,7 @@ import numpy as np
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.evaluate import run_episodes, summarize
 from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.sim.scripted import ScriptedGrasp
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.contract import MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ControlContract, ObservationLayout
 from dgz_cli.spec.envconfig import EnvConfig
@@ -19,10 +21,11 @@ OBJS = ("004_sugar_box,005_tomato_soup_can,006_mustard_bottle,011_banana,013_app
 LAYOUT = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS)
 
 
-def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarray], slots: int = 3,
-          setup: Callable[[GraspEnv], None] | None = None) -> dict:
-    """One episode on each of OBJS × ``slots`` for HandSpec ``spec`` under ``contract`` (narrow roll, seed 0), the
-    action each step ``action(env)`` (B, action_dim); ``setup(env)`` may patch the env before its reset.
+def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarray] | None, slots: int = 3,
+          setup: Callable[[GraspEnv], None] | None = None, objects: str = OBJS, trials: int = 1) -> dict:
+    """``trials`` episodes on each of ``objects`` × ``slots`` for HandSpec ``spec`` under ``contract`` (narrow roll,
+    seed 0). Each step the action is ``action(env)`` (B, action_dim), or with ``action`` None the scripted grasp's
+    (`dgz eval --policy scripted`); ``setup(env)`` may patch the env before its reset.
 
     Returns the success rate and the count of failed episodes per failure class of `dgz eval`."""
     class Probe:
@@ -37,17 +40,31 @@ def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarr
         def act(self, obs) -> np.ndarray:
             return action(self.env)
 
-    pairs = [(spec, o) for o in resolve_objects(OBJS)] * slots
-    records = run_episodes(pairs, Probe, trials=1, cfg=EnvConfig(contract=contract, roll="narrow"))
+    def make_policy(env: GraspEnv):
+        return Probe(env) if action is not None else ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)
+
+    pairs = [(spec, o) for o in resolve_objects(objects)] * slots
+    records = run_episodes(pairs, make_policy, trials=trials, cfg=EnvConfig(contract=contract, roll="narrow"))
     (hand,) = summarize(records, contract.episode.lift_height, contract.episode.success_fraction).values()
     return {"success": round(hand["success_rate"], 3), **hand["failures"]}
 
 
-def main(variants: dict, run: Callable) -> None:
-    """`python tools/probe_X.py HANDS [VARIANTS]`: print `hand variant {success, failures...}` per pair."""
-    hands = sys.argv[1].split(",")
-    names = sys.argv[2].split(",") if len(sys.argv) > 2 else list(variants)
-    for hand in hands:
+def zero(env: GraspEnv) -> np.ndarray:
+    """A zero residual (B, action_dim): the contract's closing prior, if on, acts alone."""
+    return np.zeros((env.B, env.action_dim))
+
+
+def main(variants: dict, run: Callable, default_hands: str | None = None) -> None:
+    """`python tools/probe_X.py HANDS [VARIANTS]`: print `hand variant {success, failures...}` per pair as it
+    finishes, then all of them as one JSON line {hand: {variant: result}}."""
+    args = sys.argv[1:] or ([default_hands] if default_hands else [])
+    if not args:
+        sys.exit(f"usage: {sys.argv[0]} HANDS [VARIANTS]  (VARIANTS: {','.join(variants)})")
+    names = args[1].split(",") if len(args) > 1 else list(variants)
+    out: dict = {}
+    for hand in args[0].split(","):
         spec = load_spec(resolve_spec(hand))
         for name in names:
-            print(hand, name, run(spec, variants[name]), flush=True)
+            out.setdefault(hand, {})[name] = run(spec, variants[name])
+            print(hand, name, out[hand][name], flush=True)
+    print(json.dumps(out))

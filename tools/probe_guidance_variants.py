@@ -5,7 +5,7 @@ band of the guidance error. Prints success and the failed episodes per class of 
 (`dgz_cli.sim.evaluate.failure_class`, the protocol's lift height and success fraction).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_guidance_variants.py HANDS [VARIANTS]"""
 import numpy as np
-from probe_common import LAYOUT, main, probe
+from probe_common import LAYOUT, main, probe, zero
 
 from dgz_cli.spec.contract import ClosingPrior, ControlContract, WristGuidance
 
@@ -36,7 +36,7 @@ def run(spec, variant):
 
         env.guidance = guided
 
-    return probe(spec, contract, lambda e: np.zeros((e.B, e.action_dim)), setup=patch_guidance)
+    return probe(spec, contract, zero, setup=patch_guidance)
 
 if __name__ == "__main__":
     main(VARIANTS, run)
