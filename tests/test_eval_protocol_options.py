@@ -407,6 +407,18 @@ def test_eval_thumb_open_sets_the_scripted_start_pose(tmp_path):
     assert rows["0"] != rows["1"]
 
 
+def test_eval_roll_is_a_start_state_option_for_checkpoints_too(tmp_path):
+    """Like --approach-cone, --roll sets the start state of a checkpoint's evaluation (default: its own)."""
+    rolls = {}
+    for extra in ((), ("--roll", "clear")):
+        js = tmp_path / f"{len(extra)}.json"
+        res = _dgz("eval", "--policy", "dgz-cpu-thumb-open", "--hand", "dgz_tri", "--objects", "sphere", "--trials",
+                   "1", *extra, "--json", str(js), cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        rolls[extra] = json.loads(js.read_text())["protocol"]["roll"]
+    assert rolls == {(): "narrow", ("--roll", "clear"): "clear"}
+
+
 @pytest.mark.parametrize("args,message", [
     (("--feature-scale", "0"), "--feature-scale"),
     (("--feature-scale", "nan"), "--feature-scale"),
@@ -421,6 +433,7 @@ def test_eval_thumb_open_sets_the_scripted_start_pose(tmp_path):
     (("--thumb-open", "1.5"), "--thumb-open"),  # a fraction of the thumb's opening range
     (("--thumb-open", "-1"), "--thumb-open"),
     (("--policy", "dgz-cpu-residual", "--thumb-open", "1"), "--thumb-open"),
+    (("--roll", "sideways"), "--roll"),
 ])
 def test_eval_refuses_bad_protocol_options(tmp_path, args, message):
     res = _dgz("eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1", *args, cwd=tmp_path)

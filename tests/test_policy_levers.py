@@ -17,11 +17,13 @@ from dgz_cli.rl.config import PPOConfig
 from dgz_cli.sim.env import GraspEnv
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.sim.reward import graspxl_terms, graspxl_total
+from dgz_cli.sim.slot import pick_roll
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
                                    ControlContract, ObservationLayout, WristGuidance, finger_targets)
 from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward
 from dgz_cli.spec.io import load_spec
+from conftest import needs_assets
 
 TRI = load_spec(resolve_spec("dgz_tri"))
 MARKOV = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS)
@@ -290,3 +292,37 @@ def test_throughput_levers_reach_the_env_config():
     assert env_config(TrainConfig()).contract == ControlContract()  # defaults: the paper's 400 Hz, no early stop
     with pytest.raises(ValueError, match="whole multiple"):
         TrainConfig(physics_hz=250)
+
+
+def test_pick_roll_by_hand():
+    widths = np.array([0.05, 0.08, 0.06, 0.09])
+    assert pick_roll(widths) == 0                                               # narrow: the narrowest
+    assert pick_roll(widths, np.array([-0.03, 0.01, 0.02, 0.0])) == 2         # clear: the narrowest of 1, 2, 3
+    none_clear = np.array([-0.05, -0.02, -0.029, -0.031])
+    assert pick_roll(widths, none_clear, 0.01) == 2       # none clear: the narrowest within 1 cm of the best (−0.02)
+    assert pick_roll(widths, none_clear, 0.0) == 1
+
+
+def _lowest_at_reset(env: GraspEnv) -> np.ndarray:
+    """(B,) m: each slot's lowest hand collision-box corner with the grasp point moved to the object centroid."""
+    out = []
+    for s in env.slots:
+        d, idx = s.data, s.idx
+        center = d.xpos[idx.object_body] + (idx.cloud @ d.xmat[idx.object_body].reshape(3, 3).T).mean(0)
+        out.append(s._lowest_at_target(d.xmat[idx.wrist_body].reshape(3, 3), center))
+    return np.array(out)
+
+
+@needs_assets()
+def test_clear_roll_keeps_shadows_forearm_off_the_table():
+    """Shadow's forearm reaches the table on tilted approaches under the narrow roll; the clear roll picks, from
+    the same candidates (same seed), one at least as high on every slot and strictly higher where it matters."""
+    shadow = load_spec(resolve_spec("shadow"))
+    lowest = {}
+    for roll in ("narrow", "clear"):
+        env = GraspEnv([(shadow, resolve_objects("sphere")[0])] * 8, EnvConfig(roll=roll), seed=3, threads=1)
+        env.reset(3)
+        lowest[roll] = _lowest_at_reset(env)
+        env.close()
+    assert (lowest["clear"] >= lowest["narrow"] - 1e-9).all()
+    assert (lowest["narrow"] < -0.03).any() and (lowest["clear"] > lowest["narrow"] + 0.02).any()

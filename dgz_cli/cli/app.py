@@ -226,8 +226,9 @@ def evaluate(
                                          "Table I rows, quoted (default: when a file has one of its hands)"),
     guidance: float = typer.Option(0.0, "--guidance", help="with --policy scripted: the contract's wrist guidance "
                                    "gain (a checkpoint always runs under its own contract)"),
-    roll: str = typer.Option("uniform", "--roll", help="with --policy scripted: start roll, uniform or narrow "
-                             "(a checkpoint uses its own)"),
+    roll: Optional[str] = typer.Option(None, "--roll", help="start roll: uniform, narrow (closing across the "
+                                       "object's narrowest width) or clear (narrow among the rolls whose hand clears "
+                                       "the table) (default: the checkpoint's own; uniform for scripted)"),
     physics_hz: Optional[float] = typer.Option(None, "--physics-hz", help="with --policy scripted: physics rate, a "
                                                "whole multiple of the 20 Hz control rate (default: the contract's "
                                                "400; a checkpoint uses its own)"),

@@ -34,7 +34,7 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
-             guidance: float = 0.0, roll: str = "uniform", video: Path | None = None, video_episodes: int = 2,
+             guidance: float = 0.0, roll: str | None = None, video: Path | None = None, video_episodes: int = 2,
              perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
              physics_hz: float | None = None, thumb_open: float | None = None) -> int:
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
@@ -67,11 +67,11 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         if seen:
             raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
                            f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
-    if meta is not None and (guidance != 0.0 or roll != "uniform" or physics_hz is not None or thumb_open is not None):
-        raise DgzError("--guidance, --roll, --physics-hz and --thumb-open set the scripted policy's env; a checkpoint "
-                       "runs under its own", "drop --guidance/--roll/--physics-hz/--thumb-open")
-    if roll not in ("uniform", "narrow"):
-        raise DgzError(f"--roll {roll!r} is not supported", "use --roll uniform or --roll narrow")
+    if meta is not None and (guidance != 0.0 or physics_hz is not None or thumb_open is not None):
+        raise DgzError("--guidance, --physics-hz and --thumb-open set the scripted policy's env; a checkpoint "
+                       "runs under its own", "drop --guidance/--physics-hz/--thumb-open")
+    if roll is not None and roll not in ("uniform", "narrow", "clear"):
+        raise DgzError(f"--roll {roll!r} is not supported", "use --roll uniform, narrow or clear")
     if meta is not None:
         cfg = meta.env  # a policy is evaluated under the contract it was trained with
     else:
@@ -80,7 +80,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         from dgz_cli.rl.config import TrainConfig, env_config
 
         # the scripted env is the one `dgz train` would build for the same options (one home: env_config)
-        options = (dict(guidance_gain=guidance, roll=roll) | ({} if physics_hz is None else dict(physics_hz=physics_hz))
+        options = (dict(guidance_gain=guidance, roll=roll or "uniform") | ({} if physics_hz is None else dict(physics_hz=physics_hz))
                    | ({} if thumb_open is None else dict(thumb_open=thumb_open)))
         try:
             cfg = env_config(TrainConfig(**options))
@@ -94,6 +94,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
                            f"e.g. {option} {example}") from None
     if approach_cone is not None:  # the start state, a protocol choice: it applies to a checkpoint too
         cfg = cfg.model_copy(update=dict(approach_cone=approach_cone))
+    if roll is not None and meta is not None:  # so does the start roll
+        cfg = cfg.model_copy(update=dict(roll=roll))
     if meta is not None:
         from dgz_cli.rl.checkpoint import spec_hash
 

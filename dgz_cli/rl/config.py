@@ -68,8 +68,9 @@ class TrainConfig(BaseModel):
                                                 "GraspXL's code (see docs/training.md)")
     guidance_gain: float = Field(0.0, ge=0, le=1, description="wrist guidance gain toward the object centroid "
                                  "(0 = off: the policy moves the wrist alone, as in the paper's text)")
-    roll: Literal["uniform", "narrow"] = Field("uniform", description="start roll: uniform, or closing across the "
-                                               "object's narrowest width")
+    roll: Literal["uniform", "narrow", "clear"] = Field("uniform", description="start roll: uniform, closing "
+                                                        "across the object's narrowest width (narrow), or that "
+                                                        "among the rolls whose hand clears the table (clear)")
     observation: Literal["paper", "markov"] = Field("paper", description="observation layout: the paper's, or "
                                                     "with finger PD error, guidance error and episode phase")
     finger_max_lead: float | None = Field(None, gt=0, le=10, description="rad a finger target may lead its joint "

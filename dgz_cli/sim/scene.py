@@ -53,6 +53,7 @@ class SceneIndex:
     palm_center_w: np.ndarray  # (3,) palm centre in the wrist mount frame
     grasp_offset: np.ndarray  # (3,) palm centre → the open hand's node centroid, palm frame
     closing_axis: np.ndarray  # (3,) unit, palm plane: the thumb tip → the other fingertips (l if no thumb)
+    hull_w: np.ndarray  # (8G, 3) corners of the hand's G collision-geom boxes in the wrist mount frame, start pose
 
 
 def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
@@ -204,6 +205,9 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
     wrist = bid("wrist")
     palm_axes_w, palm_center_w = fk.palm_frame(spec.palm, base=wrist)
     anchors = to_frame(fk.points(node_body, node_point), *fk.frame(wrist))
+    start_q = cfg.contract.start.pose(spec)
+    fk.pose(start_q)
+    hull_w = to_frame(_geom_box_corners(model, fk.data, geom_node >= 0), *fk.frame(wrist))
     return SceneIndex(
         wrist_body=wrist,
         wrist_qadr=np.array([model.jnt_qposadr[jid(n)] for n in WRIST_JOINTS]),
@@ -221,12 +225,24 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         object_dadr=int(model.jnt_dofadr[obj_j]),
         cloud=surface_points(model, obj_body, cfg.contract.observation.point_cloud, seed),
         rest_q=rest_q,
-        start_q=cfg.contract.start.pose(spec),
+        start_q=start_q,
         palm_axes_w=palm_axes_w,
         palm_center_w=palm_center_w,
         grasp_offset=palm_axes_w.T @ (anchors.mean(0) - palm_center_w),
         closing_axis=closing_axis(spec, (anchors - palm_center_w) @ palm_axes_w),
+        hull_w=hull_w,
     )
+
+
+def _geom_box_corners(model, data, hand: np.ndarray) -> np.ndarray:
+    """(8G, 3) world corners of the bounding boxes (``geom_aabb``, geom frame) of the G colliding geoms selected
+    by ``hand`` (ngeom,) bool, at ``data``'s current kinematics."""
+    sel = np.nonzero(hand & ((model.geom_contype != 0) | (model.geom_conaffinity != 0)))[0]
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    aabb = model.geom_aabb[sel]  # (G, 6): centre, half-sizes
+    local = aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]  # (G, 8, 3)
+    rot = data.geom_xmat[sel].reshape(-1, 3, 3)
+    return (data.geom_xpos[sel][:, None] + np.einsum("gij,gkj->gki", rot, local)).reshape(-1, 3)
 
 
 def closing_axis(spec: HandSpec, anchors_palm: np.ndarray) -> np.ndarray:

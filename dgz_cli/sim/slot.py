@@ -84,12 +84,14 @@ class Slot:
         # tilt of the approach within the cone (about the palm's f and l axes), any roll about n
         tilt, azim = cfg.approach_cone * np.sqrt(rng.random()), 2 * np.pi * rng.random()
         hinge = np.array([tilt * np.cos(azim), tilt * np.sin(azim), 2 * np.pi * rng.random()])
-        if cfg.roll == "narrow":  # of evenly spaced rolls, the one closing across the object's narrowest width
+        if cfg.roll in ("narrow", "clear"):  # of evenly spaced rolls, the one closing across the narrowest width
             pts = idx.cloud @ obj_rot.T
             rolls = hinge[2] + 2 * np.pi * np.arange(cfg.roll_candidates) / cfg.roll_candidates
-            widths = [np.ptp(pts @ (self._wrist_rot(np.array([hinge[0], hinge[1], r])) @ self.hinge_axes.T
-                                    @ idx.closing_axis)) for r in rolls]
-            hinge[2] = rolls[int(np.argmin(widths))]
+            rots = [self._wrist_rot(np.array([hinge[0], hinge[1], r])) for r in rolls]
+            widths = np.array([np.ptp(pts @ (rot @ self.hinge_axes.T @ idx.closing_axis)) for rot in rots])
+            lowest = (np.array([self._lowest_at_target(rot, center) for rot in rots]) if cfg.roll == "clear"
+                      else None)  # ... among those whose hand would clear the table at the guidance target
+            hinge[2] = rolls[pick_roll(widths, lowest, cfg.clearance_slack)]
         r_wrist = self._wrist_rot(hinge)
         u = -(r_wrist @ self.hinge_axes[2])  # from the object toward the palm: the palm normal points back
         pos = center + u * cfg.approach_distance - r_wrist @ idx.palm_center_w
@@ -99,6 +101,14 @@ class Slot:
         d.ctrl[:6] = q0
         self.wrist_q0 = q0
         mj.mj_forward(m, d)
+
+    def _lowest_at_target(self, r_wrist: np.ndarray, target: np.ndarray) -> float:
+        """Height (m, table at 0) of the lowest corner of the hand's collision boxes (start pose) with the wrist
+        at rotation ``r_wrist`` (3, 3) and the open hand's grasp point at ``target`` (3,) world — where the
+        wrist guidance would take it with nothing in the way."""
+        idx = self.idx
+        grasp_w = idx.palm_center_w + idx.palm_axes_w @ idx.grasp_offset
+        return float(target[2] + (r_wrist[2] @ (idx.hull_w - grasp_w).T).min())
 
     def _wrist_rot(self, hinge: np.ndarray) -> np.ndarray:
         """(3, 3) wrist body rotation (world) for the three hinge angles about the palm's f, l, n axes."""
@@ -160,6 +170,14 @@ class Slot:
         for k in np.nonzero(sel)[0]:  # pyramidal cones: the sum of the facets (a frictionless contact has one row)
             a, dim = adr[k], c.dim[k]
             force[node[k]] += d.efc_force[a] if dim == 1 else d.efc_force[a:a + 2 * (dim - 1)].sum()
+
+
+def pick_roll(widths: np.ndarray, lowest: np.ndarray | None = None, slack: float = 0.0) -> int:
+    """Index of the roll candidate to start from: the narrowest closing width (K,) m, among the candidates whose
+    hand stays above the table (``lowest`` (K,) m ≥ 0) — or, when none does, whose ``lowest`` is within
+    ``slack`` m of the best; ``lowest`` None: all candidates."""
+    eligible = np.ones(len(widths), bool) if lowest is None else lowest >= min(0.0, lowest.max()) - slack
+    return int(np.argmin(np.where(eligible, widths, np.inf)))
 
 
 def contact_table(model, index: SceneIndex) -> np.ndarray:
