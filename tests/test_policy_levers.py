@@ -301,6 +301,7 @@ def test_pick_roll_by_hand():
     none_clear = np.array([-0.05, -0.02, -0.029, -0.031])
     assert pick_roll(widths, none_clear, 0.01) == 2       # none clear: the narrowest within 1 cm of the best (−0.02)
     assert pick_roll(widths, none_clear, 0.0) == 1
+    assert pick_roll(widths, np.array([-0.03, 0.01, 0.02, 0.0]), 0.0, depth=0.03) == 0  # 3 cm below counts as clear
 
 
 def _lowest_at_reset(env: GraspEnv) -> np.ndarray:

@@ -53,7 +53,8 @@ class SceneIndex:
     palm_center_w: np.ndarray  # (3,) palm centre in the wrist mount frame
     grasp_offset: np.ndarray  # (3,) palm centre → the open hand's node centroid, palm frame
     closing_axis: np.ndarray  # (3,) unit, palm plane: the thumb tip → the other fingertips (l if no thumb)
-    hull_w: np.ndarray  # (8G, 3) corners of the hand's G collision-geom boxes in the wrist mount frame, start pose
+    hull_w: np.ndarray  # (8G, 3) corners of the collision-geom boxes of the wrist node's bodies (palm, forearm: the
+    #                     rigid part; the fingers move) in the wrist mount frame
 
 
 def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
@@ -207,7 +208,8 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
     anchors = to_frame(fk.points(node_body, node_point), *fk.frame(wrist))
     start_q = cfg.contract.start.pose(spec)
     fk.pose(start_q)
-    hull_w = to_frame(_geom_box_corners(model, fk.data, geom_node >= 0), *fk.frame(wrist))
+    wrist_node = next(i for i, n in enumerate(spec.nodes) if n.type == "wrist")
+    hull_w = to_frame(_geom_box_corners(model, fk.data, geom_node == wrist_node), *fk.frame(wrist))
     return SceneIndex(
         wrist_body=wrist,
         wrist_qadr=np.array([model.jnt_qposadr[jid(n)] for n in WRIST_JOINTS]),

@@ -91,7 +91,7 @@ class Slot:
             widths = np.array([np.ptp(pts @ (rot @ self.hinge_axes.T @ idx.closing_axis)) for rot in rots])
             lowest = (np.array([self._lowest_at_target(rot, center) for rot in rots]) if cfg.roll == "clear"
                       else None)  # ... among those whose hand would clear the table at the guidance target
-            hinge[2] = rolls[pick_roll(widths, lowest, cfg.clearance_slack)]
+            hinge[2] = rolls[pick_roll(widths, lowest, cfg.clearance_slack, cfg.clearance_depth)]
         r_wrist = self._wrist_rot(hinge)
         u = -(r_wrist @ self.hinge_axes[2])  # from the object toward the palm: the palm normal points back
         pos = center + u * cfg.approach_distance - r_wrist @ idx.palm_center_w
@@ -103,7 +103,7 @@ class Slot:
         mj.mj_forward(m, d)
 
     def _lowest_at_target(self, r_wrist: np.ndarray, target: np.ndarray) -> float:
-        """Height (m, table at 0) of the lowest corner of the hand's collision boxes (start pose) with the wrist
+        """Height (m, table at 0) of the lowest corner of the wrist node's collision boxes (palm, forearm) with the wrist
         at rotation ``r_wrist`` (3, 3) and the open hand's grasp point at ``target`` (3,) world — where the
         wrist guidance would take it with nothing in the way."""
         idx = self.idx
@@ -172,11 +172,12 @@ class Slot:
             force[node[k]] += d.efc_force[a] if dim == 1 else d.efc_force[a:a + 2 * (dim - 1)].sum()
 
 
-def pick_roll(widths: np.ndarray, lowest: np.ndarray | None = None, slack: float = 0.0) -> int:
+def pick_roll(widths: np.ndarray, lowest: np.ndarray | None = None, slack: float = 0.0, depth: float = 0.0) -> int:
     """Index of the roll candidate to start from: the narrowest closing width (K,) m, among the candidates whose
-    hand stays above the table (``lowest`` (K,) m ≥ 0) — or, when none does, whose ``lowest`` is within
+    hand stays above the table (``lowest`` (K,) m ≥ −``depth``) — or, when none does, whose ``lowest`` is within
     ``slack`` m of the best; ``lowest`` None: all candidates."""
-    eligible = np.ones(len(widths), bool) if lowest is None else lowest >= min(0.0, lowest.max()) - slack
+    eligible = (np.ones(len(widths), bool) if lowest is None
+                else lowest >= min(-depth, lowest.max() - slack))
     return int(np.argmin(np.where(eligible, widths, np.inf)))
 
 

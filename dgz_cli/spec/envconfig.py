@@ -71,12 +71,15 @@ class EnvConfig(_Frozen):
     roll: Literal["uniform", "narrow", "clear"] = Field(
         "uniform", description="the hand's roll about the approach axis at reset: uniform; narrow, the best of "
                                "roll_candidates for closing across the object's narrowest width; clear, the same "
-                               "among the candidates whose open hand (collision boxes) stays above the table with "
-                               "its grasp point at the guidance target (or, if none does, within clearance_slack "
+                               "among the candidates whose palm and forearm (the wrist node's collision boxes) stay "
+                               "above the table with the grasp point at the guidance target (or, if none does, within clearance_slack "
                                "of the one that comes closest)")
     roll_candidates: int = Field(10, ge=1, le=360)
     clearance_slack: float = Field(0.01, ge=0, description="m: with roll 'clear' and no candidate clearing the "
                                    "table, the candidates this close to the best clearance stay eligible")
+    clearance_depth: float = Field(0.0, ge=0, description="m: with roll 'clear', how far below the table the palm "
+                                   "and forearm may reach at the guidance target and still count as clearing it "
+                                   "(the hand stops on the object before the target)")
     early_stop: bool = Field(False, description="training only (issue 11, throughput): end an episode as a true "
                              "terminal state once it can no longer succeed — nothing touched by the end of the grasp "
                              "phase, or the object not up when the hold starts or dropped during it; dgz eval and "
