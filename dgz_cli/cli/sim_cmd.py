@@ -80,7 +80,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         from dgz_cli.rl.config import TrainConfig, env_config
 
         # the scripted env is the one `dgz train` would build for the same options (one home: env_config)
-        options = (dict(guidance_gain=guidance, roll=roll or "uniform") | ({} if physics_hz is None else dict(physics_hz=physics_hz))
+        options = (dict(guidance_gain=guidance, roll=roll or "uniform")
+                   | ({} if physics_hz is None else dict(physics_hz=physics_hz))
                    | ({} if thumb_open is None else dict(thumb_open=thumb_open)))
         try:
             cfg = env_config(TrainConfig(**options))

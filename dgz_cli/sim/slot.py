@@ -103,10 +103,12 @@ class Slot:
         mj.mj_forward(m, d)
 
     def _lowest_at_target(self, r_wrist: np.ndarray, target: np.ndarray) -> float:
-        """Height (m, table at 0) of the lowest corner of the wrist node's collision boxes (palm, forearm) with the wrist
-        at rotation ``r_wrist`` (3, 3) and the open hand's grasp point at ``target`` (3,) world — where the
+        """Height (m, table at 0) of the lowest corner of the wrist node's collision boxes (palm, forearm) with
+        the wrist at rotation ``r_wrist`` (3, 3) and the open hand's grasp point at ``target`` (3,) world — where the
         wrist guidance would take it with nothing in the way."""
         idx = self.idx
+        if not len(idx.hull_w):  # a wrist node without collision geometry cannot touch the table
+            return float("inf")
         grasp_w = idx.palm_center_w + idx.palm_axes_w @ idx.grasp_offset
         return float(target[2] + (r_wrist[2] @ (idx.hull_w - grasp_w).T).min())
 
