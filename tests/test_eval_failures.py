@@ -30,7 +30,7 @@ def test_failure_class_by_hand(change, expected):
 def test_every_failed_episode_has_one_class():
     spec = load_spec(resolve_spec("dgz_tri"))
     records = run_episodes([(spec, o) for o in resolve_objects("sphere,capsule")],
-                           lambda env: ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract), 3, threads=1)
+                           ScriptedGrasp.for_env, 3, threads=1)
     h = summarize(records)["dgz_tri"]
     assert sum(h["failures"].values()) == h["episodes"] - h["successes"] and set(h["failures"]) == set(FAILURE_CLASSES)
     assert sum(sum(o["failures"].values()) for o in h["objects"].values()) == sum(h["failures"].values())

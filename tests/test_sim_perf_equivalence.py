@@ -74,7 +74,7 @@ def rollout(name: str) -> dict[str, np.ndarray]:
     cfg, threads, seed, steps, poison = CASES[name]
     env = _env(cfg, threads, seed)
     rng = np.random.default_rng(11)
-    scripted = ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)
+    scripted = ScriptedGrasp.for_env(env)
     obs = env.reset()
     rec: dict[str, list] = {k: [] for k in ("nodes", "global", "reward", "terminated", "truncated", "success",
                                             "unstable", "episode")}
@@ -186,7 +186,7 @@ def _check_against_reference(env: GraspEnv, steps: int = 40) -> int:
     pairs with some hand–object force, so callers can insist the force path was exercised."""
     obs = env.reset()
     rng = np.random.default_rng(0)
-    scripted = ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)
+    scripted = ScriptedGrasp.for_env(env)
     touched = 0
     for t in range(steps):
         obs, *_ = env.step(_actions(env, scripted, obs, rng))

@@ -25,8 +25,9 @@ def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarr
           setup: Callable[[GraspEnv], None] | None = None, objects: str = OBJS, trials: int = 1,
           env: dict | None = None) -> dict:
     """``trials`` episodes on each of ``objects`` × ``slots`` for HandSpec ``spec`` under ``contract`` (narrow roll,
-    seed 0; ``env``: other EnvConfig fields). Each step the action is ``action(env)`` (B, action_dim), or with ``action`` None the scripted grasp's
-    (`dgz eval --policy scripted`); ``setup(env)`` may patch the env before its reset.
+    seed 0; ``env``: other EnvConfig fields). Each step the action is ``action(env)`` (B, action_dim), or with
+    ``action`` None the scripted grasp's (`dgz eval --policy scripted`); ``setup(env)`` may patch the env before its
+    reset.
 
     Returns the success rate and the count of failed episodes per failure class of `dgz eval`."""
     class Probe:
@@ -42,10 +43,11 @@ def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarr
             return action(self.env)
 
     def make_policy(env: GraspEnv):
-        return Probe(env) if action is not None else ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)
+        return Probe(env) if action is not None else ScriptedGrasp.for_env(env)
 
     pairs = [(spec, o) for o in resolve_objects(objects)] * slots
-    records = run_episodes(pairs, make_policy, trials=trials, cfg=EnvConfig(contract=contract, **({"roll": "narrow"} | (env or {}))))
+    cfg = EnvConfig(contract=contract, **({"roll": "narrow"} | (env or {})))
+    records = run_episodes(pairs, make_policy, trials=trials, cfg=cfg)
     (hand,) = summarize(records, contract.episode.lift_height, contract.episode.success_fraction).values()
     return {"success": round(hand["success_rate"], 3), **hand["failures"]}
 

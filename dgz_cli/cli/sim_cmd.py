@@ -199,7 +199,7 @@ def _policy_factory(policy: str):
     if policy == "scripted":
         from dgz_cli.sim.scripted import ScriptedGrasp
 
-        return (lambda env: ScriptedGrasp(env.N, env.grasp_offset, env.cfg.contract)), None
+        return ScriptedGrasp.for_env, None
     from dgz_cli.rl.checkpoint import LoadedPolicy, resolve_checkpoint
 
     from dgz_cli.spec.catalog import policy_ref

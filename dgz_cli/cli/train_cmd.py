@@ -91,7 +91,7 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     try:
         return Trainer(cfg, env, out, {s.name: spec_hash(p) for s, p in zip(specs, spec_paths.values())},
                        resume=resume, log=log, on_warm_start=on_warm_start,
-                       teacher_factory=lambda e: ScriptedGrasp(e.N, e.grasp_offset, e.cfg.contract))
+                       teacher_factory=ScriptedGrasp.for_env)
     except BaseException:
         env.close()
         raise

@@ -33,6 +33,12 @@ class ScriptedGrasp:
         self.last_gap: np.ndarray | None = None
         self.stalled: np.ndarray | None = None
 
+    @classmethod
+    def for_env(cls, env) -> ScriptedGrasp:
+        """The scripted grasp for every slot of GraspEnv ``env``, under the env's control contract (the policy
+        factory of `dgz eval --policy scripted` and the warm-start teacher of `dgz train`)."""
+        return cls(env.N, env.grasp_offset, env.cfg.contract)
+
     def reset(self, mask: np.ndarray | None = None) -> None:
         """Forget the phase of the slots in ``mask`` (all when None)."""
         if self.closing is not None:
