@@ -53,8 +53,8 @@ class SceneIndex:
     palm_center_w: np.ndarray  # (3,) palm centre in the wrist mount frame
     grasp_offset: np.ndarray  # (3,) palm centre → the open hand's node centroid, palm frame
     closing_axis: np.ndarray  # (3,) unit, palm plane: the thumb tip → the other fingertips (l if no thumb)
-    hull_w: np.ndarray  # (8G, 3) corners of the collision-geom boxes of the wrist node's bodies (palm, forearm: the
-    #                     rigid part; the fingers move) in the wrist mount frame
+    hull_g: np.ndarray  # (8G, 3) corners of the collision-geom boxes of the wrist node's bodies (palm, forearm: the
+    #                     rigid part; the fingers move), wrist mount frame axes, relative to the open hand's grasp point
 
 
 def _node_of_body(spec: HandSpec, model, prefix: str) -> dict[int, int]:
@@ -209,7 +209,7 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
     start_q = cfg.contract.start.pose(spec)
     fk.pose(start_q)
     wrist_node = next(i for i, n in enumerate(spec.nodes) if n.type == "wrist")
-    hull_w = to_frame(_geom_box_corners(model, fk.data, geom_node == wrist_node), *fk.frame(wrist))
+    hull_g = to_frame(_geom_box_corners(model, fk.data, geom_node == wrist_node), *fk.frame(wrist)) - anchors.mean(0)
     return SceneIndex(
         wrist_body=wrist,
         wrist_qadr=np.array([model.jnt_qposadr[jid(n)] for n in WRIST_JOINTS]),
@@ -232,7 +232,7 @@ def index_scene(spec: HandSpec, model, cfg: EnvConfig, seed: int = 0) -> SceneIn
         palm_center_w=palm_center_w,
         grasp_offset=palm_axes_w.T @ (anchors.mean(0) - palm_center_w),
         closing_axis=closing_axis(spec, (anchors - palm_center_w) @ palm_axes_w),
-        hull_w=hull_w,
+        hull_g=hull_g,
     )
 
 

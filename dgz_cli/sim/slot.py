@@ -106,11 +106,10 @@ class Slot:
         """Height (m, table at 0) of the lowest corner of the wrist node's collision boxes (palm, forearm) with
         the wrist at rotation ``r_wrist`` (3, 3) and the open hand's grasp point at ``target`` (3,) world — where the
         wrist guidance would take it with nothing in the way."""
-        idx = self.idx
-        if not len(idx.hull_w):  # a wrist node without collision geometry cannot touch the table
+        hull = self.idx.hull_g
+        if not len(hull):  # a wrist node without collision geometry cannot touch the table
             return float("inf")
-        grasp_w = idx.palm_center_w + idx.palm_axes_w @ idx.grasp_offset
-        return float(target[2] + (r_wrist[2] @ (idx.hull_w - grasp_w).T).min())
+        return float(target[2] + (hull @ r_wrist[2]).min())
 
     def _wrist_rot(self, hinge: np.ndarray) -> np.ndarray:
         """(3, 3) wrist body rotation (world) for the three hinge angles about the palm's f, l, n axes."""

@@ -72,8 +72,8 @@ class EnvConfig(_Frozen):
         "uniform", description="the hand's roll about the approach axis at reset: uniform; narrow, the best of "
                                "roll_candidates for closing across the object's narrowest width; clear, the same "
                                "among the candidates whose palm and forearm (the wrist node's collision boxes) stay "
-                               "above the table with the grasp point at the guidance target (or, if none does, within clearance_slack "
-                               "of the one that comes closest)")
+                               "above the table with the grasp point at the guidance target (or, if none does, "
+                               "within clearance_slack of the one that comes closest)")
     roll_candidates: int = Field(10, ge=1, le=360)
     clearance_slack: float = Field(0.01, ge=0, description="m: with roll 'clear' and no candidate clearing the "
                                    "table, the candidates this close to the best clearance stay eligible")
