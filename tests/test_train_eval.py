@@ -81,6 +81,41 @@ def test_resume_continues_from_the_last_checkpoint(run_dir, tmp_path):
     assert read_meta(copy).iteration == 11
 
 
+def test_init_from_fine_tunes_the_checkpoint_with_its_recipe(run_dir, tmp_path):
+    """--init-from: the checkpoint's run config is the default, its weights and return scale start the run
+    (a fresh optimizer), and the source is recorded; a changed contract, a second warm start or a student is
+    refused."""
+    from dgz_cli.cli.train_cmd import _load_config
+    from dgz_cli.spec.errors import DgzError
+
+    out, original = run_dir
+    cfg = _load_config({"init_from": str(out), "iterations": 1, "objects": "sphere", "repeat": 1}, None,
+                       tmp_path / "ft", resume=False)
+    assert cfg.hands == ("dgz_tri",) and cfg.steps_per_env == SMOKE["steps_per_env"] and cfg.objects == "sphere"
+    trainer = build(cfg, tmp_path / "ft", None)
+    for k, v in original.model.state_dict().items():
+        assert torch.equal(trainer.model.state_dict()[k], v), k
+    assert trainer.reward_norm.state() == original.reward_norm.state() and not trainer.ppo.optimizer.state
+    trainer.train()
+    meta = read_meta(tmp_path / "ft")
+    assert meta.iteration == 1 and meta.train.init_from == str(out)
+    assert meta.warm_start["checkpoint"] == str(out) and meta.warm_start["checkpoint_iteration"] == 10
+    assert meta.warm_start["weights_sha256"] == read_meta(out).weights_sha256
+    changed = _load_config({"init_from": str(out), "observation": "markov"}, None, tmp_path / "x", resume=False)
+    with pytest.raises(DgzError, match="its control contract differs from this run's \\(at observation"):
+        build(changed, tmp_path / "x", None)
+    assert not (tmp_path / "x").exists()
+    with pytest.raises(DgzError, match="two warm starts"):
+        _load_config({"init_from": str(out), "bc_episodes": 2}, None, tmp_path / "x", resume=False)
+    from conftest import REPO
+    from dgz_cli.rl.checkpoint import load
+
+    fresh = build(cfg.model_copy(update=dict(init_from=None)), tmp_path / "y", None)
+    with pytest.raises(DgzError, match="is a distilled student"):
+        fresh._init_from(*load(REPO / "policies" / "dgz-cpu-student"), "dgz-cpu-student")
+    fresh.env.close()
+
+
 def test_resume_refuses_another_preset(run_dir, tmp_path):
     out, _ = run_dir
     res = _dgz("train", "--hands", "dgz_tri", "--objects", "sphere,box", "--out", str(out), "--resume",
@@ -113,6 +148,7 @@ def test_eval_json_and_zero_shot_refusal(run_dir, tmp_path):
     (("--ablation", "bogus"), "--ablation"),
     (("--hands", "nohand"), "unknown hand 'nohand'"),
     (("--bogus-option",), "No such option"),
+    (("--init-from", "nowhere"), "--init-from 'nowhere': no such checkpoint"),
 ])
 def test_train_bad_options(tmp_path, args, message):
     res = _dgz("train", "--out", str(tmp_path / "run"), *args, cwd=tmp_path)

@@ -135,6 +135,7 @@ def train(
     bc_epochs: Optional[int] = typer.Option(None, "--bc-epochs", help=_train_default("bc_epochs")),
     bc_dagger: Optional[int] = typer.Option(None, "--bc-dagger", help=_train_default("bc_dagger_rounds")),
     lift_weight: Optional[float] = typer.Option(None, "--lift-weight", help=_train_default("lift_weight")),
+    init_from: Optional[str] = typer.Option(None, "--init-from", help=_train_default("init_from")),
     resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint "
                                 "(its recorded config; --iterations may extend it)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
@@ -145,7 +146,7 @@ def train(
     given = dict(hands=None if hands is None else tuple(h for h in hands.split(",") if h), objects=objects,
                  preset=preset, ablation=ablation, iterations=iterations, repeat=repeat, steps_per_env=steps,
                  checkpoint_every=checkpoint_every, seed=seed, bc_episodes=bc_episodes, bc_epochs=bc_epochs,
-                 bc_dagger_rounds=bc_dagger, lift_weight=lift_weight)
+                 bc_dagger_rounds=bc_dagger, lift_weight=lift_weight, init_from=init_from)
     raise typer.Exit(train_cmd.run({k: v for k, v in given.items() if v is not None}, config, out_dir, resume,
                                    asset_root, out))
 

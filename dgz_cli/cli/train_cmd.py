@@ -11,19 +11,17 @@ from rich.table import Table
 
 
 def _load_config(given: dict, config_file: Path | None, out: Path, resume: bool):
-    """TrainConfig from (in increasing priority) its defaults, the run's own record when resuming, a
-    ``--config`` YAML and the options given on the command line."""
+    """TrainConfig from (in increasing priority) its defaults, the run's own record when resuming or the
+    ``--init-from`` checkpoint's run config when fine-tuning, a ``--config`` YAML and the options given on
+    the command line."""
     import yaml
     from pydantic import ValidationError
 
+    from dgz_cli.rl.checkpoint import read_meta
     from dgz_cli.rl.config import TrainConfig
     from dgz_cli.spec.errors import DgzError
 
-    base: dict = {}
-    if resume and (out / "checkpoint.yaml").is_file():
-        from dgz_cli.rl.checkpoint import read_meta
-
-        base = read_meta(out).train.model_dump()
+    data: dict = {}
     if config_file is not None:
         try:
             data = yaml.safe_load(config_file.read_text(encoding="utf-8"))
@@ -32,15 +30,36 @@ def _load_config(given: dict, config_file: Path | None, out: Path, resume: bool)
                            "give a YAML mapping of TrainConfig fields (see docs/training.md)") from None
         if not isinstance(data, dict):
             raise DgzError(f"{config_file}: the run config must be a YAML mapping", "see docs/training.md")
-        base.update(data)
+    base: dict = {}
+    init_ref = given.get("init_from", data.get("init_from"))
+    if resume and (out / "checkpoint.yaml").is_file():
+        base = read_meta(out).train.model_dump()
+    elif isinstance(init_ref, str) and init_ref:
+        # fine-tuning keeps the checkpoint's recipe unless told otherwise; its own warm start is history
+        base = read_meta(_init_directory(init_ref)).train.model_dump() | dict(bc_episodes=0)
+    base.update(data)
     base.update(given)
     try:
         return TrainConfig(**base)
     except ValidationError as exc:
         e = exc.errors()[0]
         where = f"{config_file}: " if config_file is not None and e["loc"] and e["loc"][0] not in given else ""
-        raise DgzError(f"{where}--{'.'.join(map(str, e['loc'])).replace('_', '-')}: {e['msg']}",
+        field = ".".join(map(str, e["loc"])).replace("_", "-")
+        raise DgzError(f"{where}{'--' + field if field else 'run config'}: {e['msg']}",
                        "see `dgz train --help` and docs/training.md") from None
+
+
+def _init_directory(ref: str) -> Path:
+    """The checkpoint folder ``--init-from`` names: a folder or a shipped policy."""
+    from dgz_cli.rl.checkpoint import resolve_checkpoint
+    from dgz_cli.spec.catalog import policy_ref
+    from dgz_cli.spec.errors import DgzError
+
+    directory = resolve_checkpoint(policy_ref(ref))
+    if directory is None:
+        raise DgzError(f"--init-from {ref!r}: no such checkpoint folder or name under policies/",
+                       "name a run directory written by `dgz train` or a shipped policy, e.g. dgz-cpu-thumb-open")
+    return directory
 
 
 def hand_specs(hands, asset_root: str | None) -> dict[str, Path]:
@@ -71,6 +90,7 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     """The composition root of training: specs, objects and the env from ``cfg`` (a TrainConfig), then the
     Trainer that receives them. Bad input fails here, before anything is written."""
     from dgz_cli.policy.presets import PRESETS
+    from dgz_cli.rl import checkpoint
     from dgz_cli.rl.checkpoint import spec_hash
     from dgz_cli.rl.config import env_config
     from dgz_cli.rl.runner import Trainer
@@ -86,12 +106,13 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     specs = [load_spec(p) for p in spec_paths.values()]
     objs = resolve_objects(cfg.objects, asset_root)
     pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
+    init = None if resume or cfg.init_from is None else (*checkpoint.load(_init_directory(cfg.init_from)), cfg.init_from)
     env = GraspEnv(pairs, env_config(cfg), seed=cfg.seed, asset_root=asset_root, threads=cfg.threads,
                    use_pen=cfg.ablation != "no_mask")
     try:
         return Trainer(cfg, env, out, {s.name: spec_hash(p) for s, p in zip(specs, spec_paths.values())},
                        resume=resume, log=log, on_warm_start=on_warm_start,
-                       teacher_factory=ScriptedGrasp.for_env)
+                       teacher_factory=ScriptedGrasp.for_env, init=init)
     except BaseException:
         env.close()
         raise
@@ -165,8 +186,10 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
                       f"value MSE {stats['bc_value_loss']:.3f} [dim]collect {stats['collect_s']}s fit {stats['fit_s']}s[/]",
                       highlight=False)
 
+    start = (f"from {escape(cfg.init_from)}'s weights (its iteration {trainer.warm_start['checkpoint_iteration']})"
+             if trainer.iteration == 0 and cfg.init_from is not None else f"from iteration {trainer.iteration}")
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
-                  f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, from iteration {trainer.iteration}")
+                  f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, {start}")
     if not run_until_stopped(trainer.train, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
                                    ControlContract, EpisodeProtocol, ObservationLayout, StartPose,
@@ -102,6 +102,9 @@ class TrainConfig(BaseModel):
     thumb_open_primitives: tuple[Literal["ABD", "ROT"], ...] = Field(("ABD",), min_length=1, description="the "
                                                                      "thumb's opening joints (contract start.thumb_primitives)")
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
+    init_from: str | None = Field(None, min_length=1, description="fine-tune: a checkpoint folder or shipped policy "
+                                  "whose weights and return scale start the run (same model and control contract; "
+                                  "None = a fresh network)")
     ppo: PPOConfig = PPOConfig()
 
     @field_validator("physics_hz")
@@ -111,6 +114,12 @@ class TrainConfig(BaseModel):
         if abs(v / control_hz - round(v / control_hz)) > 1e-9:
             raise ValueError(f"must be a whole multiple of the {control_hz:g} Hz control rate (e.g. 200 or 400)")
         return v
+
+    @model_validator(mode="after")
+    def _one_warm_start(self) -> "TrainConfig":
+        if self.init_from is not None and self.bc_episodes > 0:
+            raise ValueError("init_from and bc_episodes are two warm starts; give one of them")
+        return self
 
 
 def env_config(cfg: TrainConfig) -> EnvConfig:

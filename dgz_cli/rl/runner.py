@@ -51,11 +51,14 @@ def model_config(cfg: TrainConfig) -> MagcnConfig:
 class Trainer:
     """PPO on an env it is given (``GraspEnv`` or anything with its ``reset``/``step``/``B``/``action_dim``/
     ``cfg``/``timing``/``instabilities``/``close``, and ``pair_names`` for prioritised sampling).
-    ``training_hands`` maps each hand name to its spec's sha256, recorded in every checkpoint."""
+    ``training_hands`` maps each hand name to its spec's sha256, recorded in every checkpoint. ``init``
+    (tensors, manifest, name) is the checkpoint a new run fine-tunes (``cfg.init_from``, loaded by the caller);
+    a resumed run ignores it, its own checkpoint holds the weights."""
 
     def __init__(self, cfg: TrainConfig, env, out: Path, training_hands: dict[str, str], resume: bool = False,
                  log: Callable[[dict], None] | None = None, on_warm_start: Callable[[dict], None] | None = None,
-                 teacher_factory: Callable[[object], object] | None = None) -> None:
+                 teacher_factory: Callable[[object], object] | None = None,
+                 init: tuple[dict, CheckpointMeta, str] | None = None) -> None:
         self.cfg, self.env, self.out, self.log = cfg, env, Path(out), log or (lambda row: None)
         self.on_warm_start = on_warm_start or (lambda stats: None)
         self.teacher_factory = teacher_factory
@@ -74,6 +77,8 @@ class Trainer:
             self._resume()
         elif (self.out / checkpoint.META_FILE).exists():
             raise DgzError(f"{self.out} already holds a run", "pass --resume to continue it, or choose another --out")
+        elif init is not None:
+            self._init_from(*init)
 
     # ------------------------------------------------------------------ checkpoints
     def meta(self) -> CheckpointMeta:
@@ -113,6 +118,26 @@ class Trainer:
 
             self.history = read_history(hist, self.iteration)  # schema-checked: one line naming file and field
         torch.manual_seed(self.cfg.seed + self.iteration)
+
+    def _init_from(self, tensors: dict, meta: CheckpointMeta, name: str) -> None:
+        """Fine-tuning: the model weights (exploration std included) and the return normalizer of checkpoint
+        ``name`` start the run; the optimizer starts fresh at the configured learning rate. Recorded as the
+        run's warm start."""
+        where = f"--init-from {name}"
+        if meta.student is not None:
+            raise DgzError(f"{where}: is a distilled student", "fine-tune a `dgz train` checkpoint (its teacher)")
+        for what, theirs, ours in (("model", meta.model, self.model.cfg), ("control contract", meta.contract,
+                                                                           self.env.cfg.contract)):
+            if theirs != ours:
+                field = first_difference(theirs.model_dump(), ours.model_dump())
+                raise DgzError(f"{where}: its {what} differs from this run's (at {field})",
+                               "--init-from takes its run config from the checkpoint; drop the option or --config "
+                               "entry that changes it")
+        self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+        if meta.reward_normalizer is not None:
+            self.reward_norm.load(meta.reward_normalizer.model_dump())
+        self.warm_start = dict(teacher="checkpoint", checkpoint=name, checkpoint_iteration=meta.iteration,
+                               weights_sha256=meta.weights_sha256, checkpoint_training_hands=sorted(meta.training_hands))
 
     # ------------------------------------------------------------------ loop
     def train(self) -> None:
@@ -227,6 +252,15 @@ class Trainer:
         self.history.append(row)
         self.log(row)
         return obs
+
+
+def first_difference(a, b, path: str = "") -> str:
+    """Dotted path of the first field where two nested dicts (``model_dump`` output) differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in list(a) + [k for k in b if k not in a]:
+            if a.get(k) != b.get(k):
+                return first_difference(a.get(k), b.get(k), f"{path}.{k}" if path else str(k))
+    return path or "(top level)"
 
 
 def write_curve(history: list[dict], path: Path) -> None:
