@@ -27,8 +27,9 @@ HW_ALERT = 0x80  # Protocol 2.0 status error byte: hardware alert bit
 
 @pytest.fixture
 def leap(monkeypatch):
-    # the SDK's reply timeout is 2 x its USB latency timer (16 ms) + 2 ms; give a loaded CI machine more slack
-    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 50)
+    # the SDK's reply timeout is 2 x its USB latency timer (16 ms) + 2 ms; at 50 ms (102 ms) one reply of the
+    # thread-run fake still missed it on a 2-core CI machine, so 150 ms (302 ms); only the expected timeouts wait it
+    monkeypatch.setattr(dynamixel_sdk.port_handler, "LATENCY_TIMER", 150)
     cfg = load_hand_config("leap")
     fake = fake_for(cfg, rate=1e9).start()  # motors reach their goal at the next physics step
     port = PortHandler(fake.port)
