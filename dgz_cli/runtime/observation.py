@@ -9,8 +9,6 @@ features from :mod:`dgz_cli.sim.observe`. Where the env reads the simulator, thi
 * d and Δp: the object point cloud from ``--object-points``, fixed at the start (the paper reuses the
   first perception frame and assumes the object does not move), against the anchors moved by the
   *commanded* palm motion (the arm interface's ``palm_pose``; ``--arm none`` never moves the palm).
-  With ``carry_on_lift`` (a student whose hardware view records it) the cloud is carried rigidly with the
-  commanded palm from the first lift-phase step on, as the simulator's hardware view carries it.
 * wrist velocity: the commanded palm motion per control period; object velocity: 0 (static object).
 * contact flags and forces: 0 — a real hand has no such sensors (privileged inputs, see ``trained.py``).
 * lift flag: 1 from the first step after the grasp phase, as in the env.
@@ -92,13 +90,10 @@ class HardwareObservation:
     """Observation builder for a policy under ``contract`` (``reset(spec, context)`` / ``build(StepInput)``).
 
     ``context``: ``object_points`` (P, 3) palm frame at the start (required), ``rate_hz`` (control rate).
-    ``carry_on_lift``: from the first lift-phase step on, the cloud moves with the commanded palm
-    (:class:`dgz_cli.spec.hardware_view.HardwareView`).
     """
 
     def __init__(self, spec: HandSpec, contract: ControlContract, asset_root: str | None = None,
-                 kin: HandKinematics | None = None, carry_on_lift: bool = False) -> None:
-        self.carry_on_lift = carry_on_lift
+                 kin: HandKinematics | None = None) -> None:
         from dgz_cli.sim import observe
         from dgz_cli.sim.scene import static_graph
 
@@ -124,17 +119,6 @@ class HardwareObservation:
         self.prev_q: np.ndarray | None = None
         self.prev_stamp = 0.0
         self.prev_p, self.prev_r = np.zeros(3), np.eye(3)
-        self.carried: tuple[np.ndarray, np.ndarray] | None = None  # (cloud (1, P, 3), centre (3,)) palm frame
-
-    def _object(self, k: int, p: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The cloud (1, P, 3) and its centre (3,) in the start palm frame at step ``k``, the commanded palm
-        at (p (3,), r (3, 3)): fixed, or carried with the palm from the lift phase on."""
-        if not (self.carry_on_lift and k >= self.contract.episode.grasp_steps):
-            return self.cloud, self.center
-        if self.carried is None:  # rows: r.T @ (x − p) is (x − p) @ r
-            self.carried = ((self.cloud - p) @ r, (self.center - p) @ r)
-        cloud, center = self.carried
-        return p + cloud @ r.T, p + center @ r.T
 
     def _joints(self, step: StepInput) -> tuple[np.ndarray, np.ndarray]:
         """(q (L,), q̇ (L,)): the reading, or the last one with zero velocity when this read failed."""
@@ -157,14 +141,13 @@ class HardwareObservation:
         q, qd = self._joints(step)
         p, r = step.palm_pose if step.palm_pose is not None else (np.zeros(3), np.eye(3))
         nodes = (p + self.kin.anchors_palm(q) @ r.T)[None]               # (1, N, 3) start palm frame
-        cloud, center = self._object(step.k, p, r)
-        d = ob.nearest_surface(nodes, np.zeros((1, 3)), np.eye(3)[None], cloud)
+        d = ob.nearest_surface(nodes, np.zeros((1, 3)), np.eye(3)[None], self.cloud)
         rot = r[None]
         v_w = ((p - self.prev_p) / self.dt)[None]
         w_w = ob.rotation_delta(self.prev_r[None], rot) / self.dt
         self.prev_p, self.prev_r = p, r
         zeros3 = np.zeros((1, 3))
-        target = ob.to_frame((center - p)[None], rot)
+        target = ob.to_frame((self.center - p)[None], rot)
         ep = self.contract.episode
         extra_g, extra_n = {}, {}
         if layout.has("guide"):

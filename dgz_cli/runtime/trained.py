@@ -40,9 +40,7 @@ class TrainedPolicy:
         if observation_builder is None:
             from dgz_cli.runtime.observation import HardwareObservation
 
-            student = self.meta.student
-            carry = student is not None and student.distill.view.carry_on_lift
-            observation_builder = HardwareObservation(spec, self.contract, asset_root, carry_on_lift=carry)
+            observation_builder = HardwareObservation(spec, self.contract, asset_root)
         self.observation_builder = observation_builder
         self.action_dim = self.contract.action.dim(len(spec.nodes))
         if self.contract.action.mode != "primitive":

@@ -35,9 +35,6 @@ class HardwareViewEnv(GraspEnv):
         B, L = self.B, self.L
         self._fresh = np.ones(B, bool)  # slots whose next observation is their episode's first
         self._held_pos, self._held_rot = np.zeros((B, 3)), np.tile(np.eye(3), (B, 1, 1))
-        # carry_on_lift: the held cloud's pose in the palm frame, taken at the first lift-phase observation
-        self._carried = np.zeros(B, bool)
-        self._carry_pos, self._carry_rot = np.zeros((B, 3)), np.tile(np.eye(3), (B, 1, 1))
         self._noise = np.zeros((B, L))   # the joint-reading noise of the last observation, rad
         self._qd_err = np.zeros((B, L))  # its finite difference, rad/s
         self._rngs: list[np.random.Generator | None] = [None] * B
@@ -90,20 +87,6 @@ class HardwareViewEnv(GraspEnv):
             self.teacher_obs["global"][rows] = glob[rows]
 
     # ---------------------------------------------------------------- the hardware view
-    def _carry(self, rows: np.ndarray, palm_pos: np.ndarray, palm_rot: np.ndarray) -> None:
-        """``carry_on_lift``: at a slot's first lift-phase observation, fix the held cloud's pose in the palm
-        frame; from then on the held pose follows the palm (palm_pos (B, 3), palm_rot (B, 3, 3), world)."""
-        lifting = self.t >= self.cfg.contract.episode.grasp_steps
-        for b in rows:
-            if not lifting[b]:
-                continue
-            if not self._carried[b]:
-                self._carry_pos[b] = palm_rot[b].T @ (self._held_pos[b] - palm_pos[b])
-                self._carry_rot[b] = palm_rot[b].T @ self._held_rot[b]
-                self._carried[b] = True
-            self._held_pos[b] = palm_pos[b] + palm_rot[b] @ self._carry_pos[b]
-            self._held_rot[b] = palm_rot[b] @ self._carry_rot[b]
-
     def _perturb(self, obs: dict, rows: np.ndarray) -> dict:
         view, lay, ep = self.view, self.cfg.contract.observation, self.cfg.contract.episode
         B, N = self.B, self.N
@@ -112,10 +95,7 @@ class HardwareViewEnv(GraspEnv):
         for b in fresh:  # the first frame of an episode: take the cloud, start the noise stream
             self._held_pos[b], self._held_rot[b] = xpos[b, N], xmat[b, N]
             self._rngs[b] = np.random.default_rng([self.seed, int(b), int(self.episodes[b]), 1])
-            self._carried[b] = False
         nodes_w, palm_pos, palm_rot = self._frames()
-        if view.carry_on_lift:
-            self._carry(rows, palm_pos, palm_rot)
         q, qd = self.buf["q"], self.buf["qd"][:, :self.L]
         if view.joint_noise > 0:
             for b in rows:

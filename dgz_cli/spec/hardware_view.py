@@ -13,10 +13,6 @@ observation (:mod:`dgz_cli.runtime.observation`) already is what hardware gives.
   is assumed static, as in the paper's real-world set-up: the first perception frame is reused); the node
   → surface vectors are measured against it, the grasp target is its centroid, and the object velocities
   are 0 (what the runtime feeds).
-* ``carry_on_lift`` (with ``held_cloud``): from the lift phase on, the held cloud moves rigidly with the palm
-  (a grasped object is assumed to rise with the hand), instead of staying where the first frame saw it. The
-  runtime does the same with the commanded palm pose, so a student that records it sees the same object
-  on hardware (``dgz_cli.runtime.observation``).
 * the contract's wrist guidance (if the teacher uses it) needs nothing here: it is computed from the
   observation's target block, so under ``held_cloud`` it steers toward the held centroid, as on hardware.
 
@@ -26,7 +22,7 @@ none (:func:`student_layout`).
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from pydantic import Field
 
 from dgz_cli.spec.contract import PRIVILEGED_BLOCKS, ControlContract, ObservationLayout, _Frozen
 
@@ -37,14 +33,6 @@ class HardwareView(_Frozen):
     joint_noise: float = Field(0.0, ge=0, le=0.5, description="rad: std of the Gaussian noise on joint readings")
     held_cloud: bool = Field(False, description="the object cloud of the episode's first frame is held; its "
                              "centroid is the target; object velocities are observed as 0")
-    carry_on_lift: bool = Field(False, description="with held_cloud: from the lift phase on, the held cloud "
-                                "moves rigidly with the palm (the grasped object is assumed to rise with the hand)")
-
-    @model_validator(mode="after")
-    def _carry_needs_held(self) -> "HardwareView":
-        if self.carry_on_lift and not self.held_cloud:
-            raise ValueError("carry_on_lift moves the held cloud: it needs held_cloud: true")
-        return self
 
     @property
     def active(self) -> bool:
@@ -58,8 +46,7 @@ class HardwareView(_Frozen):
         if self.joint_noise > 0:
             parts.append(f"joint noise {self.joint_noise:g} rad")
         if self.held_cloud:
-            parts.append("object cloud held from the first frame (centroid target, zero object velocity)"
-                         + (", carried with the palm from the lift on" if self.carry_on_lift else ""))
+            parts.append("object cloud held from the first frame (centroid target, zero object velocity)")
         return ", ".join(parts)
 
 
