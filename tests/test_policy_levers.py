@@ -206,7 +206,7 @@ def test_closing_prior_by_hand_and_in_the_env():
     nodes[1, 0, lay.node_col("d")] = [0.0, 0.0, 0.2 / 0.3]           # slot 1: 20 cm
     glob = np.zeros((2, lay.global_dim), np.float32)
     glob[:, lay.global_col("phase")] = 10 / 190
-    mask = np.array([[[1, 0, 1], [1, 0, 0], [0, 1, 0]]] * 2, np.float32)
+    mask = np.array([[[1, 0, 0], [1, 0, 0], [0, 0, 0]]] * 2, np.float32)  # closing: FLEX of FLEX-active nodes
     a = c.prior_action(nodes, glob, mask, np.ones((2, 3), bool))
     np.testing.assert_array_equal(a[0, 6:], [0, 0, 0, 1, 0, 0, 0, 0, 0])  # only node 1: not the wrist, FLEX active
     assert not a[1].any() and not a[:, :6].any()
@@ -231,6 +231,53 @@ def test_closing_prior_by_hand_and_in_the_env():
     env.close()
 
 
+def test_joint_mode_mask_and_closing_follow_each_joint():
+    """In the joint action mode (the w/o-primitives ablation) a node's 3 values drive its joints in M_h
+    order: the mask marks the slots that drive a joint, and the prior closes each FLEX joint in its own
+    direction (Barrett's FLEX joints close with sign −1; its spread joints are ABD and stay out)."""
+    from dgz_cli.sim.scene import static_graph
+
+    barrett = load_spec(resolve_spec("barrett"))
+    ids = {n.id: i for i, n in enumerate(barrett.nodes)}
+    g = static_graph(barrett, "joint")
+    mid, thumb = ids["middle_proximal"], ids["thumb_proximal"]
+    np.testing.assert_array_equal(g["mask"][mid], [1, 1, 0])       # prox (ABD), med (FLEX)
+    np.testing.assert_array_equal(g["closing"][mid], [0, -1, 0])    # only the FLEX joint, its sign
+    np.testing.assert_array_equal(g["closing"][thumb], [-1, 0, 0])  # finger 3's med joint is slot 0
+    assert g["mask"].sum() == len(barrett.joints) and np.count_nonzero(g["closing"]) == sum(
+        r.primitive.value == "FLEX" for r in barrett.joints)
+    p = static_graph(barrett)  # the primitive mode: the activation mask, +1 on FLEX of FLEX-active nodes
+    np.testing.assert_array_equal(p["closing"][:, 0], p["mask"][:, 0] > 0)
+    assert not p["closing"][:, 1:].any()
+
+
+@needs_assets()
+def test_the_closing_prior_closes_a_joint_mode_hand():
+    """Zero policy actions + the prior from step 0 in the joint mode: every FLEX joint moves in its closing
+    direction (sign · Δq > 0), the spread joints do not move."""
+    barrett = load_spec(resolve_spec("barrett"))
+    c = ControlContract(observation=MARKOV, prior=ClosingPrior(enabled=True, close_step=0),
+                        action=ActionLayout(mode="joint"))
+    env = GraspEnv([(barrett, resolve_objects("box")[0])], EnvConfig(contract=c), seed=4, threads=1)
+    env.reset()
+    t0 = env.targets.copy()
+    for _ in range(10):
+        env.step(np.zeros((1, env.action_dim)))
+    moved = (env.targets - t0)[0, :env.L]
+    flex = np.array([r.primitive.value == "FLEX" for r in barrett.joints])
+    sign = np.array([r.sign for r in barrett.joints])
+    assert (sign[flex] * moved[flex] > 0.1).all()   # 10 steps × 0.015 rad, unless a limit stops it
+    np.testing.assert_array_equal(moved[~flex], 0.0)
+    env.close()
+
+
+def test_no_mask_ablation_turns_action_masking_off():
+    from dgz_cli.rl.config import TrainConfig, env_config
+
+    assert env_config(TrainConfig(mask_actions=True)).contract.action.mask_actions
+    assert not env_config(TrainConfig(mask_actions=True, ablation="no_mask")).contract.action.mask_actions
+
+
 def test_residual_gains_scale_the_policy_not_the_prior():
     c = ControlContract(observation=MARKOV, prior=ClosingPrior(enabled=True, close_step=0),
                         action=ActionLayout(mask_actions=True, wrist_residual=0.0, finger_residual=0.25))
@@ -238,7 +285,7 @@ def test_residual_gains_scale_the_policy_not_the_prior():
     nodes = np.zeros((1, 2, lay.node_dim), np.float32)
     nodes[:, 0, lay.node_col("node_type").start + 0] = 1.0  # node 0 is the wrist
     glob = np.zeros((1, lay.global_dim), np.float32)
-    mask = np.array([[[1, 1, 0], [1, 1, 0]]], np.float32)
+    mask = np.array([[[1, 0, 0], [1, 0, 0]]], np.float32)  # closing: FLEX on both nodes
     policy = np.array([[0.5, -0.5, 1, 1, 1, 1] + [0.4, 0.8, 0] + [-0.4, 0.8, 0]])
     out = c.compose(policy, nodes, glob, mask, np.ones((1, 2), bool))
     # wrist × 0; fingers × 0.25; the prior's +1 FLEX on node 1 (not the wrist node) is not scaled

@@ -48,7 +48,8 @@ class TrainConfig(BaseModel):
     objects: str = Field("ycb45", description="ycb45, primitives, or comma-separated object names")
     repeat: int = Field(3, ge=1, le=100, description="N_env = hands × objects × repeat (paper: 3)")
     preset: str = Field("compact", description="network size: compact (CPU) or paper")
-    ablation: Literal[ABLATIONS] = Field("full", description="Table I variant: " + ", ".join(ABLATIONS))
+    ablation: Literal[ABLATIONS] = Field("full", description="Table I variant: " + ", ".join(ABLATIONS) + " (no_mask "
+                                         "also turns mask_actions off: without the mask every dimension is an action)")
     iterations: int = Field(100, ge=1, le=10**7, description="PPO updates")
     steps_per_env: int = Field(130, ge=1, le=10**5, description="transitions per env per PPO update (paper: 130)")
     checkpoint_every: int = Field(5, ge=1, description="iterations between checkpoints")
@@ -131,7 +132,7 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
               else ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS))
     contract = ControlContract(observation=layout,
                                action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
-                                                   mask_actions=cfg.mask_actions,
+                                                   mask_actions=cfg.mask_actions and cfg.ablation != "no_mask",
                                                    wrist_residual=cfg.wrist_residual,
                                                    finger_residual=cfg.finger_residual),
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),

@@ -227,7 +227,7 @@ class Runner:
         c = self.cfg.contract
         if not c.prior.enabled and not c.action.scales_residual:
             return raw
-        obs_arrays = [np.asarray(obs[k]) for k in ("nodes", "global", "mask", "node_valid")]
+        obs_arrays = [np.asarray(obs[k]) for k in ("nodes", "global", "closing", "node_valid")]
         return c.compose(raw[None], *obs_arrays)[0]
 
     def _guidance(self, obs, phase: str) -> np.ndarray:

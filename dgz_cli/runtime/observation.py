@@ -99,10 +99,10 @@ class HardwareObservation:
 
         self.ob, self.spec, self.contract = observe, spec, contract
         self.kin = kin or HandKinematics.for_spec(spec, asset_root)
-        g = static_graph(spec)
+        g = static_graph(spec, contract.action.mode)
         n = len(spec.nodes)
         self.static = {"adjacency": g["adjacency"][None], "physical": g["physical"][None], "mask": g["mask"][None],
-                       "node_valid": np.ones((1, n), bool)}
+                       "node_valid": np.ones((1, n), bool), "closing": g["closing"][None]}
         self.static_nodes = observe.static_features(g["finger"][None], g["node_type"][None], self.static["node_valid"])
         self.proj = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)[None]  # (1, 3N, L)
         self.n = n

@@ -95,6 +95,7 @@ class GraspEnv:
         self.adjacency = np.zeros((B, N, N), np.float32)
         self.physical = np.zeros((B, N, 27), np.float32)
         self.mask = np.zeros((B, N, 3), np.float32)
+        self.closing = np.zeros((B, N, 3), np.float32)  # each node action's closing direction (static_graph)
         self.finger = np.zeros((B, N, 6))
         self.node_type = np.zeros((B, N, 6))
         self.joint_node = np.zeros((B, L), np.int64)
@@ -106,7 +107,7 @@ class GraspEnv:
         self.node_point = np.zeros((B, N, 3))
         self.cloud = np.zeros((B, self.cfg.contract.observation.point_cloud, 3))
         for b, s in enumerate(self.slots):
-            g = static_graph(s.spec)
+            g = static_graph(s.spec, self.cfg.contract.action.mode)
             n, l = len(s.spec.nodes), s.n_joints
             self.node_valid[b, :n] = True
             self.joint_valid[b, :l] = True
@@ -118,10 +119,8 @@ class GraspEnv:
             self.joint_node[b, :l], self.joint_prim[b, :l], self.joint_sign[b, :l] = \
                 g["joint_node"], g["joint_prim"], g["joint_sign"]
             self.limits[b, :l] = s.idx.limits
-            seen: dict[int, int] = {}
-            for j, node in enumerate(g["joint_node"]):  # position of each joint among its node's joints
-                self.joint_slot[b, j] = seen.get(int(node), 0)
-                seen[int(node)] = self.joint_slot[b, j] + 1
+            self.joint_slot[b, :l] = g["joint_slot"]
+            self.closing[b, :n] = g["closing"]
             self.proj[b, :3 * n, :l] = observe.projection(g["joint_node"], g["joint_prim"], g["joint_sign"], n)
             self.node_point[b, :n] = s.idx.node_point
             self.cloud[b] = s.idx.cloud
@@ -216,7 +215,7 @@ class GraspEnv:
         a = np.nan_to_num(np.asarray(action, dtype=np.float64))
         self._residual_sq = (np.clip(a, -1.0, 1.0) ** 2 * self._active_dims).sum(-1) / np.maximum(self._active_dims.sum(-1), 1.0)
         # the policy's action is a (scaled) residual on the contract's Markov prior
-        a = np.clip(cfg.contract.compose(a, self._nodes, self._global, self.mask, self.node_valid), -1.0, 1.0)
+        a = np.clip(cfg.contract.compose(a, self._nodes, self._global, self.closing, self.node_valid), -1.0, 1.0)
         wrist, fingers = a[:, :act.wrist_dim], a[:, act.wrist_dim:]
         alpha = fingers.reshape(B, self.N, act.n_prim) * self.node_valid[..., None]
         new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,
@@ -383,7 +382,8 @@ class GraspEnv:
         x = observe.node_features(layout, self.node_valid, self.static_nodes, d=observe.to_frame(d_world, palm_rot),
                                   theta=observe.primitive_state(q, self.proj), theta_dot=observe.primitive_state(qd, self.proj),
                                   contact=force > 1e-6, force=force, **extra_n)
-        obs = dict(nodes=x, adjacency=self.adjacency, physical=self.physical, mask=self.mask, node_valid=self.node_valid)
+        obs = dict(nodes=x, adjacency=self.adjacency, physical=self.physical, mask=self.mask, node_valid=self.node_valid,
+                   closing=self.closing)
         obs["global"] = glob
         return obs, d_world, obj_pos[:, 2].copy()
 

@@ -82,7 +82,7 @@ def closing_command(env: GraspEnv, obs: dict[str, np.ndarray], action: np.ndarra
     contract = env.cfg.contract
     act = contract.action
     a = np.nan_to_num(np.asarray(action, dtype=np.float64))
-    a = np.clip(contract.compose(a, obs["nodes"], obs["global"], obs["mask"], obs["node_valid"]), -1.0, 1.0)
+    a = np.clip(contract.compose(a, obs["nodes"], obs["global"], env.closing, obs["node_valid"]), -1.0, 1.0)
     B, N = obs["node_valid"].shape
     fingers = a[:, act.wrist_dim:].reshape(B, N, act.n_prim)
     k = PRIMITIVES.index("FLEX")
@@ -96,7 +96,8 @@ def closing_command(env: GraspEnv, obs: dict[str, np.ndarray], action: np.ndarra
         np.add.at(total, (rows, env.joint_node), inc)
         np.add.at(count, (rows, env.joint_node), is_flex)
         flex = total / np.maximum(count, 1.0)
-    active = (obs["mask"][..., k] > 0) & obs["node_valid"] & (env.node_type[..., NODE_TYPES.index("wrist")] == 0)
+    # the nodes the closing prior closes: FLEX-active (primitive mode) or with a FLEX joint (joint mode)
+    active = (np.abs(env.closing).sum(-1) > 0) & obs["node_valid"] & (env.node_type[..., NODE_TYPES.index("wrist")] == 0)
     return (flex * active).sum(-1) / np.maximum(active.sum(-1), 1)
 
 

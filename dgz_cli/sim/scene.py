@@ -262,24 +262,48 @@ def closing_axis(spec: HandSpec, anchors_palm: np.ndarray) -> np.ndarray:
     return np.array([0.0, 1.0, 0.0])
 
 
-def static_graph(spec: HandSpec) -> dict[str, np.ndarray]:
+def static_graph(spec: HandSpec, mode: str = "primitive") -> dict[str, np.ndarray]:
     """Per-hand constants for the policy: adjacency (N, N), physical features (N, 27), mask (N, 3),
-    one-hot finger class (N, 6) and node type (N, 6), and the M_h gather arrays (L,)."""
+    one-hot finger class (N, 6) and node type (N, 6), the M_h gather arrays (L,) with each joint's slot
+    among its node's joints, and ``closing`` (N, 3): the direction each node action moves to close the hand.
+
+    ``mode`` is the contract's action mode. ``primitive``: ``mask`` is the spec's activation mask and
+    ``closing`` is +1 on the FLEX column of FLEX-active nodes. ``joint`` (raw joint increments, the
+    w/o-primitives ablation): a node's 3 action values drive its joints in M_h order, so ``mask`` marks the
+    slots that drive a joint and ``closing`` holds the sign of each FLEX joint in its slot (0 elsewhere)."""
     ids = {n.id: i for i, n in enumerate(spec.nodes)}
     n = len(spec.nodes)
     adj = np.zeros((n, n), dtype=np.float32)
     for i, node in enumerate(spec.nodes):
         if node.parent is not None:
             adj[ids[node.parent], i] = 1.0
+    joint_node = np.array([ids[r.node] for r in spec.joints], dtype=np.int64)
+    joint_prim = np.array([PRIMITIVES.index(r.primitive.value) for r in spec.joints], dtype=np.int64)
+    joint_sign = np.array([r.sign for r in spec.joints], dtype=np.float64)
+    joint_slot = np.zeros(len(joint_node), dtype=np.int64)
+    for j, node in enumerate(joint_node):  # position of each joint among its node's joints
+        joint_slot[j] = np.count_nonzero(joint_node[:j] == node)
+    activation = np.array([spec.activation_mask[x.id] for x in spec.nodes], dtype=np.float32)
+    flex = PRIMITIVES.index("FLEX")
+    closing = np.zeros((n, len(PRIMITIVES)), dtype=np.float32)
+    if mode == "joint":
+        if joint_slot.size and joint_slot.max() >= len(PRIMITIVES):
+            raise ValueError(f"{spec.name}: a node drives {joint_slot.max() + 1} joints; the joint action mode "
+                             f"has {len(PRIMITIVES)} values per node")
+        mask = np.zeros_like(closing)
+        mask[joint_node, joint_slot] = 1.0
+        closing[joint_node, joint_slot] = np.where(joint_prim == flex, joint_sign, 0.0)
+    else:
+        mask = activation
+        closing[:, flex] = activation[:, flex] > 0
     return dict(
         adjacency=adj,
         physical=np.array([spec.features.values[x.id] for x in spec.nodes], dtype=np.float32),
-        mask=np.array([spec.activation_mask[x.id] for x in spec.nodes], dtype=np.float32),
+        mask=mask,
+        closing=closing,
         finger=np.eye(len(FINGER_CLASSES), dtype=np.float32)[[FINGER_CLASSES.index(x.finger) for x in spec.nodes]],
         node_type=np.eye(len(NODE_TYPES), dtype=np.float32)[[NODE_TYPES.index(x.type) for x in spec.nodes]],
-        joint_node=np.array([ids[r.node] for r in spec.joints]),
-        joint_prim=np.array([PRIMITIVES.index(r.primitive.value) for r in spec.joints]),
-        joint_sign=np.array([r.sign for r in spec.joints], dtype=np.float64),
+        joint_node=joint_node, joint_prim=joint_prim, joint_sign=joint_sign, joint_slot=joint_slot,
     )
 
 

@@ -294,7 +294,7 @@ class ControlContract(_Frozen):
         target = np.asarray(glob)[:, lay.global_col("target")].astype(np.float64) * lay.target_scale
         return self.guidance.delta(target, grasp_offset, active)
 
-    def compose(self, policy_action: np.ndarray, nodes: np.ndarray, glob: np.ndarray, mask: np.ndarray,
+    def compose(self, policy_action: np.ndarray, nodes: np.ndarray, glob: np.ndarray, closing: np.ndarray,
                 node_valid: np.ndarray) -> np.ndarray:
         """(B, action_dim) the normalized command before the [-1, 1] clip: the policy's action (B, action_dim)
         times :meth:`ActionLayout.residual_gains`, plus :meth:`prior_action` of the same observation. The
@@ -304,12 +304,14 @@ class ControlContract(_Frozen):
         if self.action.scales_residual:
             a = a * self.action.residual_gains(n)
         if self.prior.enabled:
-            a = a + self.prior_action(nodes, glob, mask, node_valid)
+            a = a + self.prior_action(nodes, glob, closing, node_valid)
         return a
 
-    def prior_action(self, nodes: np.ndarray, glob: np.ndarray, mask: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
+    def prior_action(self, nodes: np.ndarray, glob: np.ndarray, closing: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
         """(B, action_dim) the closing prior's normalized action (zeros when disabled) from an observation:
-        nodes (B, N, node_dim), global (B, global_dim), mask (B, N, 3), node_valid (B, N)."""
+        nodes (B, N, node_dim), global (B, global_dim), node_valid (B, N), and the hand's static ``closing``
+        (B, N, n_prim): the direction each node action closes the hand (``sim.scene.static_graph``: +1 on
+        FLEX in the primitive mode, each FLEX joint's sign in its slot in the joint mode)."""
         act, lay = self.action, self.observation
         b, n = node_valid.shape
         out = np.zeros((b, act.dim(n)))
@@ -326,8 +328,8 @@ class ControlContract(_Frozen):
         if self.prior.close_guide is not None:
             guide = glob[:, lay.global_col("guide")].astype(np.float64) * lay.target_scale
             close |= np.linalg.norm(guide, axis=-1) < self.prior.close_guide
-        flex = (mask[..., 0] > 0) & node_valid & ~is_wrist & close[:, None]
-        out[:, act.wrist_dim::act.n_prim] = flex
+        on = node_valid & ~is_wrist & close[:, None]
+        out[:, act.wrist_dim:] = (np.asarray(closing, dtype=np.float64) * on[..., None]).reshape(b, -1)
         return out
 
     @property
