@@ -25,7 +25,7 @@ def run(spec, variant):
 
         def guided(glob):
             g = base(glob)
-            prior = contract.prior_action(env._nodes, glob, env.mask, env.node_valid)
+            prior = contract.prior_action(env._nodes, glob, env.closing, env.node_valid)
             closing = prior[:, contract.action.wrist_dim::contract.action.n_prim].any(-1)
             err = np.linalg.norm(glob[:, LAYOUT.global_col("guide")].astype(float) * LAYOUT.target_scale, axis=-1)
             if kind == "hold_on_close":
