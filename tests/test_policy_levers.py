@@ -22,6 +22,7 @@ from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
                                    ControlContract, ObservationLayout, WristGuidance, finger_targets)
 from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward
+from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import load_spec
 from conftest import needs_assets
 
@@ -246,6 +247,10 @@ def test_joint_mode_mask_and_closing_follow_each_joint():
     np.testing.assert_array_equal(g["closing"][thumb], [-1, 0, 0])  # finger 3's med joint is slot 0
     assert g["mask"].sum() == len(barrett.joints) and np.count_nonzero(g["closing"]) == sum(
         r.primitive.value == "FLEX" for r in barrett.joints)
+    crowded = barrett.model_copy(update=dict(joints=[r.model_copy(update=dict(node="middle_proximal"))
+                                                     for r in barrett.joints]))
+    with pytest.raises(DgzError, match="drives 8 joints"):  # 3 values per node cannot drive 8 joints
+        static_graph(crowded, "joint")
     p = static_graph(barrett)  # the primitive mode: the activation mask, +1 on FLEX of FLEX-active nodes
     np.testing.assert_array_equal(p["closing"][:, 0], p["mask"][:, 0] > 0)
     assert not p["closing"][:, 1:].any()

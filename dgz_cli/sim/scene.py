@@ -288,8 +288,11 @@ def static_graph(spec: HandSpec, mode: str = "primitive") -> dict[str, np.ndarra
     closing = np.zeros((n, len(PRIMITIVES)), dtype=np.float32)
     if mode == "joint":
         if joint_slot.size and joint_slot.max() >= len(PRIMITIVES):
-            raise ValueError(f"{spec.name}: a node drives {joint_slot.max() + 1} joints; the joint action mode "
-                             f"has {len(PRIMITIVES)} values per node")
+            from dgz_cli.spec.errors import DgzError
+
+            raise DgzError(f"hand '{spec.name}': a node drives {joint_slot.max() + 1} joints; the joint action mode "
+                           f"(--ablation no_primitives) has {len(PRIMITIVES)} values per node",
+                           "train this hand with primitive actions (any other --ablation)")
         mask = np.zeros_like(closing)
         mask[joint_node, joint_slot] = 1.0
         closing[joint_node, joint_slot] = np.where(joint_prim == flex, joint_sign, 0.0)
