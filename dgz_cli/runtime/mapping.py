@@ -20,11 +20,7 @@ class MhMap:
         self.node = np.array([index[r.node] for r in spec.joints], dtype=int)
         self.prim = np.array([PRIMITIVES.index(r.primitive.value) for r in spec.joints], dtype=int)
         self.sign = np.array([r.sign for r in spec.joints], dtype=float)
-        seen: dict[int, int] = {}
-        self.slot = np.zeros(len(self.node), dtype=int)
-        for j, n in enumerate(self.node):
-            self.slot[j] = seen.get(int(n), 0)
-            seen[int(n)] = self.slot[j] + 1
+        self.slot = spec.joint_slots()
 
 
 def start_pose(spec: HandSpec, overrides: dict[str, float] | None = None, base: np.ndarray | None = None) -> np.ndarray:

@@ -280,9 +280,7 @@ def static_graph(spec: HandSpec, mode: str = "primitive") -> dict[str, np.ndarra
     joint_node = np.array([ids[r.node] for r in spec.joints], dtype=np.int64)
     joint_prim = np.array([PRIMITIVES.index(r.primitive.value) for r in spec.joints], dtype=np.int64)
     joint_sign = np.array([r.sign for r in spec.joints], dtype=np.float64)
-    joint_slot = np.zeros(len(joint_node), dtype=np.int64)
-    for j, node in enumerate(joint_node):  # position of each joint among its node's joints
-        joint_slot[j] = np.count_nonzero(joint_node[:j] == node)
+    joint_slot = spec.joint_slots()
     activation = np.array([spec.activation_mask[x.id] for x in spec.nodes], dtype=np.float32)
     flex = PRIMITIVES.index("FLEX")
     closing = np.zeros((n, len(PRIMITIVES)), dtype=np.float32)

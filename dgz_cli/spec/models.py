@@ -252,6 +252,16 @@ class HandSpec(Frozen):
     def node_index(self) -> dict[str, int]:
         return {n.id: i for i, n in enumerate(self.nodes)}
 
+    def joint_slots(self) -> np.ndarray:
+        """(L,) each actuated joint's position among its node's joints, in ``joints`` order (the value of a
+        node's action that drives it in the joint action mode)."""
+        seen: dict[str, int] = {}
+        slots = np.zeros(len(self.joints), dtype=np.int64)
+        for j, row in enumerate(self.joints):
+            slots[j] = seen.get(row.node, 0)
+            seen[row.node] = slots[j] + 1
+        return slots
+
     def derived_mask(self) -> dict[str, list[int]]:
         """The activation mask implied by M_h (paper Sec. III-C-2)."""
         mask = {n.id: [0, 0, 0] for n in self.nodes}
