@@ -329,6 +329,42 @@ def test_table_paper_rows_only_with_the_papers_hands(tmp_path):
     assert "split differs from the paper's for shadow (ours: unseen, paper: train)" in _table([single])
 
 
+def test_table_by_object_puts_the_hardest_object_first(tmp_path):
+    from rich.console import Console
+
+    from dgz_cli.cli.eval_table import render_object_table
+
+    def report(name: str, rates: dict[str, dict[str, float]]) -> Path:
+        hands = {h: {"success_rate": sum(o.values()) / len(o), "episodes": 4 * len(o),
+                     "objects": {k: {"success_rate": v, "trials": 4} for k, v in o.items()}} for h, o in rates.items()}
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps({"policy": name, "training_hands": ["allegro"], "hands": hands}))
+        return path
+
+    a = report("a", {"allegro": {"box": 1.0, "knife": 0.25}, "leap": {"box": 0.5, "knife": 0.0}})
+    b = report("b", {"allegro": {"box": 0.25, "knife": 0.75}})
+
+    def render(files) -> list[str]:
+        buf = io.StringIO()
+        assert render_object_table(files, Console(file=buf, width=120, emoji=False)) == 0
+        return buf.getvalue().splitlines()
+
+    lines = render([a])
+    rows = [line for line in lines if "knife" in line or "box" in line]
+    assert "knife" in rows[0] and "box" in rows[1]  # knife's mean 0.125 < box's 0.75
+    assert re.findall(r"\d\.\d+", rows[0]) == ["0.25", "0.00", "0.125"]  # allegro, leap, mean over hands
+    assert re.findall(r"\d\.\d+", next(line for line in lines if "mean over objects" in line)) == ["0.62", "0.25", "0.438"]
+    both = render([a, b])  # the first file's order; each file's mean over its hands
+    assert re.findall(r"\d\.\d+", next(line for line in both if "knife" in line)) == ["0.125", "0.750"]
+
+
+def test_table_by_object_refuses_a_file_without_objects(tmp_path):
+    f = _report(tmp_path / "r.json", "runs/r", [], {"leap": 0.5})
+    res = _dgz("eval", "--table", str(f), "--by-object", cwd=tmp_path)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert "r.json: no per-object results (field 'hands.leap.objects')" in " ".join(res.stderr.split())
+
+
 @pytest.mark.skipif(not PAPER.is_file(), reason="the paper's .tex is not on this machine")
 def test_paper_numbers_are_quoted_exactly():
     from dgz_cli.cli.eval_table import PAPER_HANDS, PAPER_TABLE_I

@@ -225,6 +225,9 @@ def evaluate(
                                                "scripted baseline row"),
     paper: Optional[bool] = typer.Option(None, "--paper/--no-paper", help="with --table: also print the paper's "
                                          "Table I rows, quoted (default: when a file has one of its hands)"),
+    by_object: bool = typer.Option(False, "--by-object", help="with --table: success per object instead (rows: "
+                                   "objects, hardest first; one file: a column per hand, several: each file's "
+                                   "mean over its hands)"),
     guidance: float = typer.Option(0.0, "--guidance", help="with --policy scripted: the contract's wrist guidance "
                                    "gain (a checkpoint always runs under its own contract)"),
     roll: Optional[str] = typer.Option(None, "--roll", help="start roll: uniform, narrow (closing across the "
@@ -259,9 +262,11 @@ def evaluate(
     from dgz_cli.cli import sim_cmd
 
     if table:
-        from dgz_cli.cli.eval_table import render_table
+        from dgz_cli.cli.eval_table import render_object_table, render_table
 
-        raise typer.Exit(render_table(table, out, paper))
+        raise typer.Exit(render_object_table(table, out) if by_object else render_table(table, out, paper))
+    if by_object:
+        raise DgzError("--by-object without --table", "give result files: --table a.json --by-object")
     if not hand:
         raise DgzError("no --hand given", "name one or more hands, e.g. --hand leap --hand inspire")
     import math

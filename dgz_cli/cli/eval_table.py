@@ -15,11 +15,22 @@ MAX_TABLE_BYTES = 16 * 1024 * 1024
 _Name = Annotated[str, Field(min_length=1, max_length=200)]
 
 
+_Rate = Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)]
+
+
+class ObjectResult(BaseModel):
+    model_config = ConfigDict(extra="allow")
+
+    success_rate: _Rate
+    trials: Annotated[int, Field(ge=0, le=10**9)] = 0
+
+
 class HandResult(BaseModel):
     model_config = ConfigDict(extra="allow")
 
-    success_rate: Annotated[float, Field(allow_inf_nan=False, ge=0.0, le=1.0)]
+    success_rate: _Rate
     episodes: Annotated[int, Field(ge=0, le=10**9)] = 0
+    objects: dict[_Name, ObjectResult] = Field(default_factory=dict, max_length=100000)
 
 
 class EvalReport(BaseModel):
@@ -166,4 +177,58 @@ def render_table(files: list[Path], console, paper: bool | None = None) -> int:
                   for h in cols if h in paper_names and (h in trained) != (h in PAPER_TRAINING_HANDS)]
         if differ:
             wide.print(escape("note: the split differs from the paper's for " + ", ".join(differ)), highlight=False)
+    return 0
+
+
+def render_object_table(files: list[Path], console) -> int:
+    """Print success per object from `dgz eval --json` files (``console``: a rich Console), hardest object
+    first: with one file, a column per hand and the mean over its hands; with several, each file's mean over
+    its hands. The last row is the mean over objects. Returns the exit code (0); a file without per-object
+    results is a one-line :class:`DgzError`."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    reports = []
+    for f in files:
+        rep = load_eval_report(Path(f))
+        missing = [h for h, r in rep.hands.items() if not r.objects]
+        if missing or not rep.hands:
+            raise DgzError(f"{f}: no per-object results (field 'hands.{missing[0] if missing else '?'}.objects')",
+                           "write the file with `dgz eval ... --json FILE`, which records every object")
+        reports.append((Path(f).stem, rep))
+
+    def means(rep: EvalReport) -> dict[str, float]:
+        """object → mean over the hands that ran it."""
+        per: dict[str, list[float]] = {}
+        for r in rep.hands.values():
+            for o, res in r.objects.items():
+                per.setdefault(o, []).append(res.success_rate)
+        return {o: sum(v) / len(v) for o, v in per.items()}
+
+    all_means = [means(rep) for _, rep in reports]
+    objects = sorted(set().union(*all_means), key=lambda o: (all_means[0].get(o, 2.0), o))
+    t = Table(title="success rate per object (hardest first)")
+    t.add_column("object", no_wrap=True)
+    single = len(reports) == 1
+    hands = sorted(reports[0][1].hands, key=_column_order) if single else []
+    for h in hands:
+        t.add_column(escape(h), justify="right")
+    for name, _ in reports:
+        t.add_column(escape(f"{name} mean" if not single else "mean over hands"), justify="right")
+
+    def cell(x: float | None, digits: int = 2) -> str:
+        return "—" if x is None else f"{x:.{digits}f}"
+
+    for o in objects:
+        row = [cell(reports[0][1].hands[h].objects[o].success_rate if o in reports[0][1].hands[h].objects else None)
+               for h in hands]
+        t.add_row(escape(o), *row, *(cell(m.get(o), 3) for m in all_means))
+    t.add_section()
+    avg = lambda xs: sum(xs) / len(xs) if xs else None  # noqa: E731
+    t.add_row("mean over objects",
+              *(cell(avg([r.success_rate for r in reports[0][1].hands[h].objects.values()])) for h in hands),
+              *(cell(avg(list(m.values())), 3) for m in all_means))
+    wide = Console(file=console.file, emoji=False, width=max(console.width, 40 + 10 * (len(hands) + len(reports))))
+    wide.print(t)
     return 0
