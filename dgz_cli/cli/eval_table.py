@@ -210,8 +210,9 @@ def render_object_table(files: list[Path], console) -> int:
     objects = sorted(set().union(*all_means), key=lambda o: (all_means[0].get(o, 2.0), o))
     t = Table(title="success rate per object (hardest first)")
     t.add_column("object", no_wrap=True)
+    first = reports[0][1].hands  # sets the row order and, for a single file, the per-hand columns
     single = len(reports) == 1
-    hands = sorted(reports[0][1].hands, key=_column_order) if single else []
+    hands = sorted(first, key=_column_order) if single else []
     for h in hands:
         t.add_column(escape(h), justify="right")
     for name, _ in reports:
@@ -221,13 +222,12 @@ def render_object_table(files: list[Path], console) -> int:
         return "—" if x is None else f"{x:.{digits}f}"
 
     for o in objects:
-        row = [cell(reports[0][1].hands[h].objects[o].success_rate if o in reports[0][1].hands[h].objects else None)
-               for h in hands]
+        row = [cell(first[h].objects[o].success_rate if o in first[h].objects else None) for h in hands]
         t.add_row(escape(o), *row, *(cell(m.get(o), 3) for m in all_means))
     t.add_section()
     avg = lambda xs: sum(xs) / len(xs) if xs else None  # noqa: E731
     t.add_row("mean over objects",
-              *(cell(avg([r.success_rate for r in reports[0][1].hands[h].objects.values()])) for h in hands),
+              *(cell(avg([r.success_rate for r in first[h].objects.values()])) for h in hands),
               *(cell(avg(list(m.values())), 3) for m in all_means))
     wide = Console(file=console.file, emoji=False, width=max(console.width, 40 + 10 * (len(hands) + len(reports))))
     wide.print(t)
