@@ -23,18 +23,16 @@ LAYOUT = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS
 
 def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarray] | None, slots: int = 3,
           setup: Callable[[GraspEnv], None] | None = None, objects: str = OBJS, trials: int = 1,
-          env: dict | None = None) -> dict:
+          env: dict | None = None, make_policy: Callable[[GraspEnv], object] | None = None) -> dict:
     """``trials`` episodes on each of ``objects`` × ``slots`` for HandSpec ``spec`` under ``contract`` (narrow roll,
     seed 0; ``env``: other EnvConfig fields). Each step the action is ``action(env)`` (B, action_dim), or with
-    ``action`` None the scripted grasp's (`dgz eval --policy scripted`); ``setup(env)`` may patch the env before its
-    reset.
+    ``action`` None the scripted grasp's (`dgz eval --policy scripted`), or ``make_policy(env)``'s when given;
+    ``setup(env)`` may patch the env before its reset.
 
     Returns the success rate and the count of failed episodes per failure class of `dgz eval`."""
     class Probe:
         def __init__(self, env: GraspEnv) -> None:
             self.env = env
-            if setup is not None:
-                setup(env)
 
         def reset(self, mask) -> None:
             pass
@@ -42,12 +40,16 @@ def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarr
         def act(self, obs) -> np.ndarray:
             return action(self.env)
 
-    def make_policy(env: GraspEnv):
+    def policy_for(env: GraspEnv):
+        if setup is not None:
+            setup(env)
+        if make_policy is not None:
+            return make_policy(env)
         return Probe(env) if action is not None else ScriptedGrasp.for_env(env)
 
     pairs = [(spec, o) for o in resolve_objects(objects)] * slots
     cfg = EnvConfig(contract=contract, **({"roll": "narrow"} | (env or {})))
-    records = run_episodes(pairs, make_policy, trials=trials, cfg=cfg)
+    records = run_episodes(pairs, policy_for, trials=trials, cfg=cfg)
     (hand,) = summarize(records, contract.episode.lift_height, contract.episode.success_fraction).values()
     return {"success": round(hand["success_rate"], 3), **hand["failures"]}
 
