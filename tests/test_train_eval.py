@@ -157,7 +157,7 @@ def test_train_bad_options(tmp_path, args, message):
 
 
 @pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart", "dgz-cpu-guided", "dgz-cpu-residual",
-                                  "dgz-cpu-residual-nocap"])
+                                  "dgz-cpu-residual-nocap", "dgz-cpu-thumb-open", "dgz-cpu-ycb45"])
 def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     from conftest import REPO
     from dgz_cli.policy.graph import to_tensors
