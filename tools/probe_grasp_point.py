@@ -6,19 +6,16 @@ distal and fingertip nodes (`distal`), (c) the fingertip nodes (`tips`), all fro
 frame as `dgz_cli.runtime.observation.grasp_offset_of` measures it. Prints success and the failed episodes per
 class of `dgz eval` (`dgz_cli.sim.evaluate.failure_class`).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_grasp_point.py HANDS [VARIANTS]"""
-from probe_common import main, probe
+from probe_common import NINE, e13_scripted, main, probe
 
-from dgz_cli.rl.config import TrainConfig, env_config
 from dgz_cli.spec.kinematics import HandKinematics
 
-NINE = "032_knife,030_fork,031_spoon,040_large_marker,037_scissors,071_nine_hole_peg_test,035_power_drill," \
-       "028_skillet_lid,048_hammer"
 # name: the node types whose open-hand centroid is the grasp point (None: every node, the contract's)
 VARIANTS = {"base": None, "distal": ("distal", "fingertip"), "tips": ("fingertip",)}
 
 
 def run(spec, types):
-    cfg = env_config(TrainConfig(guidance_gain=0.05, roll="clear", thumb_open=0.5))
+    cfg, fields = e13_scripted()
 
     def aim(env):
         if types is not None:
@@ -27,7 +24,7 @@ def run(spec, types):
             env.grasp_offset[:] = anchors[[n.type in types for n in spec.nodes]].mean(0)
 
     return probe(spec, cfg.contract, None, slots=1, setup=aim, objects=NINE, trials=5,
-                 env={k: getattr(cfg, k) for k in type(cfg).model_fields if k != "contract"})
+                 env=fields)
 
 
 if __name__ == "__main__":

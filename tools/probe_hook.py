@@ -9,14 +9,11 @@ Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_hook.py HANDS 
 import sys
 
 import numpy as np
-from probe_common import OBJS, main, probe
+from probe_common import NINE, OBJS, e13_scripted, main, probe
 
-from dgz_cli.rl.config import TrainConfig, env_config
 from dgz_cli.sim.scripted import ScriptedGrasp
 from dgz_cli.spec.models import NODE_TYPES
 
-NINE = "032_knife,030_fork,031_spoon,040_large_marker,037_scissors,071_nine_hole_peg_test,035_power_drill," \
-       "028_skillet_lid,048_hammer"
 # name: (K steps, amount)
 VARIANTS = {"base": (0, 0.0), "hook20": (20, 1.0), "hook40": (40, 1.0), "hook40h": (40, 0.5)}
 TEN = "--ten" in sys.argv
@@ -26,7 +23,7 @@ if TEN:
 
 def run(spec, variant):
     steps, amount = variant
-    cfg = env_config(TrainConfig(guidance_gain=0.05, roll="clear", thumb_open=0.5))
+    cfg, fields = e13_scripted()
     act = cfg.contract.action
     wrist = NODE_TYPES.index("wrist")
 
@@ -47,7 +44,7 @@ def run(spec, variant):
         return grasp
 
     return probe(spec, cfg.contract, None, slots=1, objects=OBJS if TEN else NINE, trials=5,
-                 env={k: getattr(cfg, k) for k in type(cfg).model_fields if k != "contract"}, make_policy=policy)
+                 env=fields, make_policy=policy)
 
 
 if __name__ == "__main__":
