@@ -116,6 +116,42 @@ def test_init_from_fine_tunes_the_checkpoint_with_its_recipe(run_dir, tmp_path):
     fresh.env.close()
 
 
+def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
+    """A fine-tune may change only the residual factors of the contract. A wrist that was no action in the
+    checkpoint (``wrist_residual`` 0 with ``mask_actions``) starts with a zero-mean wrist head, so the run
+    begins from the checkpoint's behaviour; every other weight is the checkpoint's."""
+    from dgz_cli.cli.train_cmd import _load_config
+    from dgz_cli.policy.graph import to_tensors
+    from dgz_cli.spec.errors import DgzError
+
+    source = build(TrainConfig(iterations=1, mask_actions=True, wrist_residual=0.0, **SMOKE), tmp_path / "src", None)
+    with torch.no_grad():
+        source.model.wrist_head[-1].bias.fill_(0.3)  # a wrist mean that would drift the palm if it were kept
+    obs = source.env.reset(0)
+    assert not source.model.wrist_is_action
+    source.save()
+    source.env.close()
+    cfg = _load_config({"init_from": str(tmp_path / "src"), "wrist_residual": 0.25}, None, tmp_path / "ft", resume=False)
+    assert cfg.wrist_residual == 0.25 and cfg.finger_residual == 1.0 and cfg.mask_actions
+    tuned = build(cfg, tmp_path / "ft", None)
+    assert tuned.model.wrist_is_action
+    for k, v in source.model.state_dict().items():
+        if k.startswith("wrist_head.2.") or k == "log_std_wrist":
+            continue
+        assert torch.equal(tuned.model.state_dict()[k], v), k
+    wrist, t = tuned.model.wrist_dim, to_tensors(obs)
+    with torch.no_grad():
+        new_mean, old_mean = (m(t)[0] for m in (tuned.model, source.model))
+        kept_head = tuned.model.wrist_head[-1](tuned.model.wrist_head[:-1](torch.zeros(1, tuned.model.wrist_head[0].in_features)))
+    assert bool(tuned.model.action_valid(t)[:, :wrist].all()) and torch.count_nonzero(new_mean[:, :wrist]) == 0
+    assert torch.count_nonzero(kept_head) == 0  # the 0.3 bias is not carried over
+    torch.testing.assert_close(new_mean[:, wrist:], old_mean[:, wrist:], rtol=0, atol=0)  # the fingers act as before
+    tuned.env.close()
+    other = _load_config({"init_from": str(tmp_path / "src"), "guidance_gain": 0.1}, None, tmp_path / "x", resume=False)
+    with pytest.raises(DgzError, match="control contract differs .*only wrist-residual and finger-residual may change"):
+        build(other, tmp_path / "x", None)
+
+
 def test_resume_refuses_another_preset(run_dir, tmp_path):
     out, _ = run_dir
     res = _dgz("train", "--hands", "dgz_tri", "--objects", "sphere,box", "--out", str(out), "--resume",

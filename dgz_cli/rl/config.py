@@ -104,8 +104,8 @@ class TrainConfig(BaseModel):
                                                                      "thumb's opening joints (contract start.thumb_primitives)")
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     init_from: str | None = Field(None, min_length=1, description="fine-tune: a checkpoint folder or shipped policy "
-                                  "whose weights and return scale start the run (same model and control contract; "
-                                  "None = a fresh network)")
+                                  "whose weights and return scale start the run (same model and control contract, "
+                                  "but for the residual factors; None = a fresh network)")
     ppo: PPOConfig = PPOConfig()
 
     @field_validator("physics_hz")

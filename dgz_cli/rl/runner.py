@@ -126,14 +126,22 @@ class Trainer:
         where = f"--init-from {name}"
         if meta.student is not None:
             raise DgzError(f"{where}: is a distilled student", "fine-tune a `dgz train` checkpoint (its teacher)")
-        for what, theirs, ours in (("model", meta.model, self.model.cfg), ("control contract", meta.contract,
-                                                                           self.env.cfg.contract)):
+        for what, theirs, ours in (("model", meta.model.model_dump(), self.model.cfg.model_dump()),
+                                   ("control contract", _without_residual_factors(meta.contract),
+                                    _without_residual_factors(self.env.cfg.contract))):
             if theirs != ours:
-                field = first_difference(theirs.model_dump(), ours.model_dump())
-                raise DgzError(f"{where}: its {what} differs from this run's (at {field})",
+                raise DgzError(f"{where}: its {what} differs from this run's (at {first_difference(theirs, ours)})",
                                "--init-from takes its run config from the checkpoint; drop the option or --config "
-                               "entry that changes it")
+                               "entry that changes it (only wrist-residual and finger-residual may change)")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+        if self.model.wrist_is_action and not meta.contract.action.wrist_is_action:
+            # the checkpoint's wrist head never had a gradient (its dims were not scored): start the new
+            # wrist residual at a zero mean, so the run begins from the checkpoint's behaviour plus exploration
+            last = self.model.wrist_head[-1]
+            with torch.no_grad():
+                last.weight.zero_()
+                last.bias.zero_()
+                self.model.log_std_wrist.fill_(self.model.cfg.init_log_std)
         if meta.reward_normalizer is not None:
             self.reward_norm.load(meta.reward_normalizer.model_dump())
         self.warm_start = dict(teacher="checkpoint", checkpoint=name, checkpoint_iteration=meta.iteration,
@@ -252,6 +260,14 @@ class Trainer:
         self.history.append(row)
         self.log(row)
         return obs
+
+
+def _without_residual_factors(contract) -> dict:
+    """The contract as a dict, less the action's residual factors: the only contract fields a fine-tune may
+    change, since they scale the policy's output without changing any tensor's shape or meaning."""
+    dump = contract.model_dump()
+    dump["action"] = {k: v for k, v in dump["action"].items() if k not in ("wrist_residual", "finger_residual")}
+    return dump
 
 
 def first_difference(a, b, path: str = "") -> str:
