@@ -15,6 +15,7 @@ from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.contract import MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ControlContract, ObservationLayout
 from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.spec.io import load_spec
+from dgz_cli.spec.kinematics import HandKinematics
 
 OBJS = ("004_sugar_box,005_tomato_soup_can,006_mustard_bottle,011_banana,013_apple,017_orange,025_mug,"
         "055_baseball,061_foam_brick,077_rubiks_cube")
@@ -22,6 +23,16 @@ LAYOUT = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS
 # the nine objects YCB-45 is lost on (docs/training.md, after E16)
 NINE = ("032_knife,030_fork,031_spoon,040_large_marker,037_scissors,071_nine_hole_peg_test,035_power_drill,"
         "028_skillet_lid,048_hammer")
+
+
+def open_hand_tips(spec) -> tuple[np.ndarray, np.ndarray]:
+    """(3,), (3,) m: the thumb's fingertip and the mean of the other fingertips on the flat open hand, palm frame
+    (where the guidance's grasp point is measured)."""
+    kin = HandKinematics.for_spec(spec)
+    anchors = kin.anchors_palm(kin.rest)  # (N, 3)
+    tip = [n.type == "fingertip" for n in spec.nodes]
+    thumb = anchors[[t and n.finger == "thumb" for t, n in zip(tip, spec.nodes)]].mean(0)
+    return thumb, anchors[[t and n.finger != "thumb" for t, n in zip(tip, spec.nodes)]].mean(0)
 
 
 def e13_scripted() -> tuple[EnvConfig, dict]:

@@ -10,7 +10,7 @@ class of `dgz eval` (`dgz_cli.sim.evaluate.failure_class`).
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_grasp_point.py HANDS [VARIANTS] [nine|ladder]"""
 import sys
 
-from probe_common import NINE, OBJS, e13_scripted, main, probe
+from probe_common import NINE, OBJS, e13_scripted, main, open_hand_tips, probe
 
 from dgz_cli.spec.kinematics import HandKinematics
 
@@ -22,16 +22,12 @@ def run(spec, types):
     cfg, fields = e13_scripted()
 
     def aim(env):
-        if types is not None:
+        if types == "opposition":
+            env.grasp_offset[:] = sum(open_hand_tips(spec)) / 2
+        elif types is not None:
             kin = HandKinematics.for_spec(spec)
             anchors = kin.anchors_palm(kin.rest)  # (N, 3) palm frame, the flat open hand
-            if types == "opposition":
-                tips = [n.type == "fingertip" for n in spec.nodes]
-                thumb = anchors[[t and n.finger == "thumb" for t, n in zip(tips, spec.nodes)]].mean(0)
-                others = anchors[[t and n.finger != "thumb" for t, n in zip(tips, spec.nodes)]].mean(0)
-                env.grasp_offset[:] = (thumb + others) / 2
-            else:
-                env.grasp_offset[:] = anchors[[n.type in types for n in spec.nodes]].mean(0)
+            env.grasp_offset[:] = anchors[[n.type in types for n in spec.nodes]].mean(0)
 
     objects = OBJS if sys.argv[3:4] == ["ladder"] else NINE
     return probe(spec, cfg.contract, None, slots=1, setup=aim, objects=objects, trials=5, env=fields)

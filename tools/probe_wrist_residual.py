@@ -15,8 +15,7 @@ from dgz_cli.sim.evaluate import run_episodes, summarize
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.io import load_spec
-from dgz_cli.spec.kinematics import HandKinematics
-from probe_common import OBJS
+from probe_common import OBJS, open_hand_tips
 
 
 class Recorder:
@@ -34,15 +33,16 @@ class Recorder:
         a = self.policy.act(obs)
         act = self.env.cfg.contract.action
         grasp = self.env.t < self.env.cfg.contract.episode.grasp_steps
-        r = np.clip(a[:, :3], -1, 1) * act.wrist_residual * act.wrist_scale
-        g = self.env.guidance(obs["global"])[:, :3]
-        self.residual += r[grasp].sum(0)
-        self.guide += g[grasp].sum(0)
-        self.steps += int(grasp.sum())
-        self.size.extend(np.linalg.norm(r[grasp], axis=-1))
-        ng = np.linalg.norm(g[grasp], axis=-1) * np.linalg.norm(r[grasp], axis=-1)
+        r = (np.clip(a[:, :3], -1, 1) * act.wrist_residual * act.wrist_scale)[grasp]
+        g = self.env.guidance(obs["global"])[grasp, :3]
+        self.residual += r.sum(0)
+        self.guide += g.sum(0)
+        self.steps += len(r)
+        size_r = np.linalg.norm(r, axis=-1)
+        self.size.extend(size_r)
+        ng = np.linalg.norm(g, axis=-1) * size_r
         ok = ng > 1e-12
-        self.cos.extend(((r[grasp] * g[grasp]).sum(-1)[ok] / ng[ok]))
+        self.cos.extend((r * g).sum(-1)[ok] / ng[ok])
         return a
 
 
@@ -64,11 +64,7 @@ def main() -> None:
         records = run_episodes(pairs, make, trials=1, cfg=policy.meta.env)
         (summary,) = summarize(records).values()
         r = holder["r"]
-        kin = HandKinematics.for_spec(spec)
-        anchors = kin.anchors_palm(kin.rest)  # (N, 3) m, the flat open hand
-        tip = [n.type == "fingertip" for n in spec.nodes]
-        thumb = anchors[[t and n.finger == "thumb" for t, n in zip(tip, spec.nodes)]].mean(0)
-        others = anchors[[t and n.finger != "thumb" for t, n in zip(tip, spec.nodes)]].mean(0)
+        thumb, others = open_hand_tips(spec)
         out[hand] = dict(success=round(summary["success_rate"], 3),
                          residual_mm_per_step=[round(1e3 * v / r.steps, 3) for v in r.residual],
                          guidance_mm_per_step=[round(1e3 * v / r.steps, 3) for v in r.guide],
