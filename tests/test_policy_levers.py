@@ -311,6 +311,31 @@ def test_residual_gains_scale_the_policy_not_the_prior():
     env.close()
 
 
+def test_a_wrist_translation_factor_scales_translation_only_and_holds_the_palm():
+    """``wrist_translation_residual`` scales the wrist's first three (translation) dims alone; the rotation dims
+    keep ``wrist_residual``. At 0 a translation action of 1 does not move the palm, while the same action with
+    the factor unset moves it 1 cm per step along the palm axes."""
+    c = ControlContract(observation=MARKOV, action=ActionLayout(wrist_residual=0.25, wrist_translation_residual=0.0))
+    assert c.action.translation_residual == 0.0 and c.action.scales_residual and c.action.wrist_is_action
+    np.testing.assert_array_equal(c.action.residual_gains(2), [0, 0, 0, 0.25, 0.25, 0.25] + [1.0] * 6)
+    assert ActionLayout(wrist_residual=0.25).translation_residual == 0.25
+    assert not ActionLayout(mask_actions=True, wrist_residual=0.0, wrist_translation_residual=0.0).wrist_is_action
+    assert ActionLayout(mask_actions=True, wrist_residual=0.0, wrist_translation_residual=0.5).wrist_is_action
+    moved = {}
+    for factor in (0.0, None):
+        action = ActionLayout(wrist_translation_residual=factor)
+        env = _env(EnvConfig(contract=ControlContract(observation=MARKOV, action=action)))
+        env.reset()
+        palm0 = env.state()["palm_pos"].copy()
+        a = np.zeros((1, env.action_dim))
+        a[:, :3] = 1.0
+        for _ in range(3):
+            env.step(a)
+        moved[factor] = float(np.linalg.norm(env.state()["palm_pos"] - palm0))
+        env.close()
+    assert moved[0.0] < 1e-3 < 0.01 < moved[None]
+
+
 def test_early_stop_ends_hopeless_episodes_in_training_only():
     """early_stop: a hand that never touches the object ends its episode as a true terminal state at the end
     of the grasp phase (not the full 190 steps); eval's env builder turns the option off."""

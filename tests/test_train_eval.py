@@ -147,8 +147,15 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     assert torch.count_nonzero(kept_head) == 0  # the 0.3 bias is not carried over
     torch.testing.assert_close(new_mean[:, wrist:], old_mean[:, wrist:], rtol=0, atol=0)  # the fingers act as before
     tuned.env.close()
+    # the translation factor alone is a residual factor too: a fine-tune may set it
+    cfg = _load_config({"init_from": str(tmp_path / "src"), "wrist_residual": 0.25, "wrist_translation_residual": 0.0},
+                       None, tmp_path / "ft2", resume=False)
+    tuned2 = build(cfg, tmp_path / "ft2", None)
+    assert tuned2.env.cfg.contract.action.translation_residual == 0.0 and tuned2.model.wrist_is_action
+    tuned2.env.close()
     other = _load_config({"init_from": str(tmp_path / "src"), "guidance_gain": 0.1}, None, tmp_path / "x", resume=False)
-    with pytest.raises(DgzError, match="control contract differs .*only wrist-residual and finger-residual may change"):
+    with pytest.raises(DgzError, match="control contract differs .*only the residual factors wrist_residual, "
+                                       "wrist_translation_residual and finger_residual may change"):
         build(other, tmp_path / "x", None)
 
 

@@ -87,6 +87,9 @@ class TrainConfig(BaseModel):
                                   "action.wrist_residual; 0: the wrist follows the guidance and the lift alone)")
     finger_residual: float = Field(1.0, ge=0, le=1, description="factor on the policy's finger actions before the "
                                    "closing prior is added (contract action.finger_residual)")
+    wrist_translation_residual: float | None = Field(None, ge=0, le=1, description="factor on the policy's wrist "
+                                                     "translation actions alone (contract action.wrist_translation_residual; "
+                                                     "None = wrist_residual)")
     residual_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −mean a² over the "
                                    "policy's active action dims (its residual on the prior; 0 = off)")
     critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "
@@ -134,7 +137,8 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                action=ActionLayout(mode=mode, finger_max_lead=cfg.finger_max_lead,
                                                    mask_actions=cfg.mask_actions and cfg.ablation != "no_mask",
                                                    wrist_residual=cfg.wrist_residual,
-                                                   finger_residual=cfg.finger_residual),
+                                                   finger_residual=cfg.finger_residual,
+                                                   wrist_translation_residual=cfg.wrist_translation_residual),
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
                                guidance=WristGuidance(gain=cfg.guidance_gain),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,

@@ -132,7 +132,7 @@ class Trainer:
             if theirs != ours:
                 raise DgzError(f"{where}: its {what} differs from this run's (at {first_difference(theirs, ours)})",
                                "--init-from takes its run config from the checkpoint; drop the option or --config "
-                               "entry that changes it (only wrist-residual and finger-residual may change)")
+                               "entry that changes it (only the residual factors wrist_residual, wrist_translation_residual and finger_residual may change)")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
         if self.model.wrist_is_action and not meta.contract.action.wrist_is_action:
             # the checkpoint's wrist head never had a gradient (its dims were not scored): start the new
@@ -262,11 +262,14 @@ class Trainer:
         return obs
 
 
+RESIDUAL_FACTORS = ("wrist_residual", "wrist_translation_residual", "finger_residual")
+
+
 def _without_residual_factors(contract) -> dict:
     """The contract as a dict, less the action's residual factors: the only contract fields a fine-tune may
     change, since they scale the policy's output without changing any tensor's shape or meaning."""
     dump = contract.model_dump()
-    dump["action"] = {k: v for k, v in dump["action"].items() if k not in ("wrist_residual", "finger_residual")}
+    dump["action"] = {k: v for k, v in dump["action"].items() if k not in RESIDUAL_FACTORS}
     return dump
 
 

@@ -172,25 +172,36 @@ class ActionLayout(_Frozen):
                                   "and the lift alone)")
     finger_residual: float = Field(1.0, ge=0, le=1, description="the policy's finger actions are multiplied by this "
                                    "before the closing prior is added (< 1 bounds how far a residual can undo it)")
+    wrist_translation_residual: float | None = Field(
+        None, ge=0, le=1, description="factor on the policy's wrist translation actions alone (the first three wrist "
+                                      "dims, palm f/l/n); the rotation dims keep wrist_residual. None = wrist_residual")
 
     def dim(self, n_nodes: int) -> int:
         return self.wrist_dim + self.n_prim * n_nodes
 
     @property
+    def translation_residual(self) -> float:
+        """The factor on the wrist's translation actions (``wrist_translation_residual``, else ``wrist_residual``)."""
+        return self.wrist_residual if self.wrist_translation_residual is None else self.wrist_translation_residual
+
+    @property
     def scales_residual(self) -> bool:
         """Whether :meth:`residual_gains` differ from 1 anywhere."""
-        return self.wrist_residual != 1.0 or self.finger_residual != 1.0
+        return self.wrist_residual != 1.0 or self.translation_residual != 1.0 or self.finger_residual != 1.0
 
     @property
     def wrist_is_action(self) -> bool:
         """Whether the wrist dims are actions (sampled and scored): always, unless ``mask_actions`` and a
-        ``wrist_residual`` of 0 leave them without effect."""
-        return not (self.mask_actions and self.wrist_residual == 0)
+        ``wrist_residual`` of 0 (translation included) leave them without effect."""
+        return not (self.mask_actions and self.wrist_residual == 0 and self.translation_residual == 0)
 
     def residual_gains(self, n_nodes: int) -> np.ndarray:
-        """(wrist_dim + n_prim·N,) the factors on the policy's own normalized action (all 1 by default)."""
-        return np.concatenate([np.full(self.wrist_dim, self.wrist_residual),
-                               np.full(self.n_prim * n_nodes, self.finger_residual)])
+        """(wrist_dim + n_prim·N,) the factors on the policy's own normalized action (all 1 by default): the
+        wrist's translation dims (the first three) × :attr:`translation_residual`, its rotation dims ×
+        ``wrist_residual``, the finger dims × ``finger_residual``."""
+        wrist = np.full(self.wrist_dim, self.wrist_residual)
+        wrist[:3] = self.translation_residual
+        return np.concatenate([wrist, np.full(self.n_prim * n_nodes, self.finger_residual)])
 
     def scales(self, n_nodes: int) -> np.ndarray:
         """(wrist_dim + n_prim·N,) physical units of one normalized action unit."""
