@@ -132,7 +132,8 @@ class Trainer:
             if theirs != ours:
                 raise DgzError(f"{where}: its {what} differs from this run's (at {first_difference(theirs, ours)})",
                                "--init-from takes its run config from the checkpoint; drop the option or --config "
-                               "entry that changes it (only the residual factors wrist_residual, wrist_translation_residual and finger_residual may change)")
+                               f"entry that changes it (only the residual factors {', '.join(RESIDUAL_FACTORS[:-1])} and "
+                               f"{RESIDUAL_FACTORS[-1]} may change)")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
         if self.model.wrist_is_action and not meta.contract.action.wrist_is_action:
             # the checkpoint's wrist head never had a gradient (its dims were not scored): start the new
