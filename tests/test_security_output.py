@@ -29,6 +29,29 @@ def test_refuses_fifo_and_folder(tmp_path):
     assert (tmp_path / "d").is_dir() and _leftovers(tmp_path) == []
 
 
+@pytest.mark.parametrize("where", ["mkstemp", "fsync"])
+def test_a_stop_signal_inside_a_write_lands_after_it(monkeypatch, tmp_path, where):
+    """SIGTERM makes `dgz train` raise KeyboardInterrupt and save; a stop that arrived inside a periodic
+    checkpoint's write (once between mkstemp creating the file and returning its name) left a .tmp behind.
+    The stop now lands when the write is done: the file is whole, nothing else is in the folder."""
+    import signal
+    import tempfile
+
+    real = {"mkstemp": tempfile.mkstemp, "fsync": os.fsync}[where]
+
+    def stop_inside(*args, **kwargs):
+        result = real(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)  # Ctrl-C's handler raises KeyboardInterrupt, as train's SIGTERM one does
+        return result
+
+    monkeypatch.setattr(tempfile if where == "mkstemp" else os, where, stop_inside)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_bytes(tmp_path / "model.safetensors", b"weights")
+    assert (tmp_path / "model.safetensors").read_bytes() == b"weights"
+    assert _leftovers(tmp_path) == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_refuses_device_nodes_without_touching_them():
     for dev in ("/dev/null", "/dev/full", "/dev/zero"):
         if not os.path.exists(dev):

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import tempfile
+import threading
+from contextlib import contextmanager
 from pathlib import Path
 
 import yaml
@@ -155,6 +158,29 @@ def check_output(path: Path, option: str = "output") -> None:
         raise DgzError(f"cannot write {path}: folder {folder} is not writable", hint)
 
 
+@contextmanager
+def _stop_signals_deferred():
+    """Hold Ctrl-C, SIGTERM and SIGHUP until the block is done, then deliver them to the handlers that were in place:
+    a stop that lands inside a write (even between the temporary file's creation and its name reaching us) must
+    not leave a temporary file behind. Only the main thread receives Python signals; elsewhere this does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    names = ("SIGINT", "SIGTERM", "SIGHUP")
+    stops = [getattr(signal, n) for n in names if hasattr(signal, n)]
+    previous = {s: signal.getsignal(s) for s in stops}
+    pending: list[int] = []
+    for s in stops:
+        signal.signal(s, lambda sig, _frame: pending.append(sig))
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+        for sig in dict.fromkeys(pending):
+            signal.raise_signal(sig)
+
+
 def atomic_write_bytes(path: Path, data: bytes, *, inputs=()) -> None:
     """Write ``data`` to ``path`` via a temporary file in the same directory and a rename, so a reader
     (or a crash) never sees a half-written file; the result gets the usual umask-derived mode.
@@ -187,6 +213,11 @@ def atomic_write_bytes(path: Path, data: bytes, *, inputs=()) -> None:
         if same:
             raise DgzError(f"cannot write {path}: it is the input file {src}",
                            "choose an output path different from the input")
+    with _stop_signals_deferred():
+        _write_and_rename(path, target, data)
+
+
+def _write_and_rename(path: Path, target: Path, data: bytes) -> None:
     tmp = None
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
