@@ -443,6 +443,21 @@ def test_eval_thumb_open_sets_the_scripted_start_pose(tmp_path):
     assert rows["0"] != rows["1"]
 
 
+def test_eval_guidance_stop_gap_is_recorded_and_changes_the_scripted_grasp(tmp_path):
+    """`--guidance-stop-gap` (issue 11): the guidance stops pressing the palm along its normal near the surface;
+    recorded in the protocol, and other trajectories than the guidance that presses on."""
+    rows, gaps = {}, {}
+    for extra in ((), ("--guidance-stop-gap", "0.1")):
+        js, csv = tmp_path / f"{len(extra)}.json", tmp_path / f"{len(extra)}.csv"
+        res = _dgz("eval", "--hand", "dgz_tri", "--objects", "box", "--trials", "2", "--guidance", "0.05", *extra,
+                   "--json", str(js), "--csv", str(csv), cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        gaps[extra] = json.loads(js.read_text())["protocol"]["guidance_stop_gap_m"]
+        rows[extra] = csv.read_text().splitlines()[1:]
+    assert gaps == {(): None, ("--guidance-stop-gap", "0.1"): 0.1}
+    assert rows[()] != rows[("--guidance-stop-gap", "0.1")]
+
+
 def test_eval_roll_is_a_start_state_option_for_checkpoints_too(tmp_path):
     """Like --approach-cone, --roll sets the start state of a checkpoint's evaluation (default: its own)."""
     rolls = {}
@@ -470,6 +485,10 @@ def test_eval_roll_is_a_start_state_option_for_checkpoints_too(tmp_path):
     (("--thumb-open", "-1"), "--thumb-open"),
     (("--policy", "dgz-cpu-residual", "--thumb-open", "1"), "--thumb-open"),
     (("--roll", "sideways"), "--roll"),
+    (("--guidance-stop-gap", "0.05"), "--guidance-stop-gap"),  # without --guidance there is nothing to stop
+    (("--guidance", "0.05", "--guidance-stop-gap", "0"), "--guidance-stop-gap"),
+    (("--guidance", "0.05", "--guidance-stop-gap", "0.4"), "--guidance-stop-gap"),
+    (("--policy", "dgz-cpu-residual", "--guidance-stop-gap", "0.05"), "--guidance-stop-gap"),
 ])
 def test_eval_refuses_bad_protocol_options(tmp_path, args, message):
     res = _dgz("eval", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1", *args, cwd=tmp_path)

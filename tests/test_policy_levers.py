@@ -40,6 +40,39 @@ def test_guidance_by_hand():
     assert not g.delta(np.ones((1, 3)), np.zeros((1, 3)), np.array([False])).any()  # only in the grasp phase
 
 
+def test_guidance_stop_gap_by_hand():
+    g = WristGuidance(gain=0.1, speed_cap=0.01, stop_gap=0.05)
+    target, grasp = np.array([[0.05, 0.0, 0.10]] * 3), np.zeros((3, 3))
+    d = g.delta(target, grasp, np.array([True] * 3), palm_gap=np.array([0.08, 0.04, 0.04]))
+    np.testing.assert_allclose(d[0, :3], np.array([0.005, 0, 0.01]) * 0.01 / math.hypot(0.005, 0.01))  # far: capped
+    np.testing.assert_allclose(d[1, :3], [0.005, 0, 0])  # near: no push along n, still centred along f
+    back = g.delta(np.array([[0.0, 0.0, -0.02]]), np.zeros((1, 3)), np.array([True]), palm_gap=np.array([0.01]))
+    np.testing.assert_allclose(back[0, :3], [0, 0, -0.002])  # a grasp point past the target may still back off
+    with pytest.raises(ValueError, match="palm gap"):
+        g.delta(target, grasp, np.array([True] * 3))
+
+
+def test_guidance_stop_gap_reads_the_wrist_node_and_the_clip():
+    c = ControlContract(guidance=WristGuidance(gain=0.1, stop_gap=0.05))
+    lay = c.observation
+    nodes = np.zeros((2, 3, lay.node_dim))
+    from dgz_cli.spec.models import NODE_TYPES
+    nodes[:, 0, lay.node_col("node_type").start + NODE_TYPES.index("wrist")] = 1.0
+    nodes[0, 0, lay.node_col("d")] = np.array([0.0, 0.03, 0.04]) / lay.distance_clip  # palm 5 cm from the surface
+    nodes[1, 0, lay.node_col("d")] = np.array([0.0, 0.0, 0.04]) / lay.distance_clip
+    nodes[:, 1, lay.node_col("d")] = 0.0  # a finger touching does not count: only the wrist node
+    valid = np.ones((2, 3), bool)
+    np.testing.assert_allclose(c.palm_gap(nodes, valid), [0.05, 0.04])
+    glob = np.zeros((2, lay.global_dim))
+    glob[:, lay.global_col("target")] = np.array([0.0, 0.0, 0.06]) / lay.target_scale
+    g = c.guidance_action(glob, np.zeros((2, 3)), np.array([True, True]), nodes, valid)
+    np.testing.assert_allclose(g[:, 2], [0.006, 0.0])  # 5 cm is not below the 5 cm gap; 4 cm is
+    with pytest.raises(ValueError, match="nodes and node_valid"):
+        c.guidance_action(glob, np.zeros((2, 3)), np.array([True, True]))
+    with pytest.raises(ValueError, match="below the observation's distance_clip"):
+        ControlContract(guidance=WristGuidance(gain=0.1, stop_gap=0.3))
+
+
 def test_finger_lead_cap_by_hand():
     act = ActionLayout(finger_max_lead=0.05)
     one = lambda *v: np.array([v], dtype=float)  # noqa: E731

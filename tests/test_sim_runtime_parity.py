@@ -38,7 +38,7 @@ class Recorder:
 
 LEVERS = ControlContract(  # issue 11's levers that act through the contract: all of them on
     observation=ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS),
-    action=ActionLayout(finger_max_lead=0.05, mask_actions=True), guidance=WristGuidance(gain=0.05),
+    action=ActionLayout(finger_max_lead=0.05, mask_actions=True), guidance=WristGuidance(gain=0.05, stop_gap=0.05),
     prior=ClosingPrior(enabled=True))
 
 

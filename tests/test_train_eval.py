@@ -153,9 +153,16 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     tuned2 = build(cfg, tmp_path / "ft2", None)
     assert tuned2.env.cfg.contract.action.translation_residual == 0.0 and tuned2.model.wrist_is_action
     tuned2.env.close()
+    # so is the guidance's stop gap (how the wrist command is composed, not what a tensor means)
+    cfg = _load_config({"init_from": str(tmp_path / "src"), "guidance_stop_gap": 0.05}, None, tmp_path / "ft3",
+                       resume=False)
+    tuned3 = build(cfg, tmp_path / "ft3", None)
+    assert tuned3.env.cfg.contract.guidance.stop_gap == 0.05
+    tuned3.env.close()
     other = _load_config({"init_from": str(tmp_path / "src"), "guidance_gain": 0.1}, None, tmp_path / "x", resume=False)
-    with pytest.raises(DgzError, match="control contract differs .*only the residual factors wrist_residual, "
-                                       "wrist_translation_residual and finger_residual may change"):
+    with pytest.raises(DgzError, match=r"control contract differs from this run's \(at guidance.gain\).*only action.wrist_residual, "
+                                       r"action.wrist_translation_residual, action.finger_residual, "
+                                       r"guidance.stop_gap may change"):
         build(other, tmp_path / "x", None)
 
 

@@ -34,7 +34,7 @@ class Recorder:
         act = self.env.cfg.contract.action
         grasp = self.env.t < self.env.cfg.contract.episode.grasp_steps
         r = (np.clip(a[:, :3], -1, 1) * act.wrist_residual * act.wrist_scale)[grasp]
-        g = self.env.guidance(obs["global"])[grasp, :3]
+        g = self.env.guidance(obs["global"], obs["nodes"])[grasp, :3]
         self.residual += r.sum(0)
         self.guide += g.sum(0)
         self.steps += len(r)

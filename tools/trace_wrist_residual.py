@@ -35,7 +35,7 @@ def trace(policy: LoadedPolicy, hand: str, obj: str, trials: int) -> None:
     for t in range(steps):
         a = np.asarray(policy.act(obs), dtype=np.float64)
         residual[t] = np.clip(a[:, : act.wrist_dim] * gains, -1, 1) * act.wrist_scale
-        guidance[t] = env.guidance(obs["global"])
+        guidance[t] = env.guidance(obs["global"], obs["nodes"])
         gap[t] = palm_object_distance(env)[0]
         displacement[t] = np.linalg.norm(env.state()["obj_pos"] - start, axis=-1)
         for series in (residual, guidance, gap, displacement):

@@ -230,6 +230,10 @@ def evaluate(
                                    "mean over its hands)"),
     guidance: float = typer.Option(0.0, "--guidance", help="with --policy scripted: the contract's wrist guidance "
                                    "gain (a checkpoint always runs under its own contract)"),
+    guidance_stop_gap: Optional[float] = typer.Option(None, "--guidance-stop-gap", help="with --policy scripted "
+                                                      "and --guidance: the guidance stops moving the palm toward the "
+                                                      "object along its normal once the palm is this many m from its "
+                                                      "surface (default: it presses on; a checkpoint uses its own)"),
     roll: Optional[str] = typer.Option(None, "--roll", help="start roll: uniform, narrow (closing across the "
                                        "object's narrowest width) or clear (narrow among the rolls whose hand clears "
                                        "the table) (default: the checkpoint's own; uniform for scripted)"),
@@ -278,7 +282,8 @@ def evaluate(
                        "0 approaches from straight above; the default cone is 0.5")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
-                                      asset_root, out, guidance=guidance, roll=roll, video=video,
+                                      asset_root, out, guidance=guidance, guidance_stop_gap=guidance_stop_gap,
+                                      roll=roll, video=video,
                                       video_episodes=video_episodes, perturb=perturb, feature_scale=feature_scale,
                                       approach_cone=approach_cone, physics_hz=physics_hz, thumb_open=thumb_open))
 

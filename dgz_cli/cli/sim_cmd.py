@@ -34,7 +34,7 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
-             guidance: float = 0.0, roll: str | None = None, video: Path | None = None, video_episodes: int = 2,
+             guidance: float = 0.0, guidance_stop_gap: float | None = None, roll: str | None = None, video: Path | None = None, video_episodes: int = 2,
              perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
              physics_hz: float | None = None, thumb_open: float | None = None) -> int:
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
@@ -67,9 +67,13 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         if seen:
             raise DgzError(f"--zero-shot: {', '.join(seen)} {'was' if len(seen) == 1 else 'were'} a training hand of "
                            f"{policy}", "drop --zero-shot to evaluate seen hands, or pick unseen ones")
-    if meta is not None and (guidance != 0.0 or physics_hz is not None or thumb_open is not None):
-        raise DgzError("--guidance, --physics-hz and --thumb-open set the scripted policy's env; a checkpoint "
-                       "runs under its own", "drop --guidance/--physics-hz/--thumb-open")
+    if meta is not None and (guidance != 0.0 or guidance_stop_gap is not None or physics_hz is not None
+                             or thumb_open is not None):
+        raise DgzError("--guidance, --guidance-stop-gap, --physics-hz and --thumb-open set the scripted policy's "
+                       "env; a checkpoint runs under its own",
+                       "drop --guidance/--guidance-stop-gap/--physics-hz/--thumb-open")
+    if guidance_stop_gap is not None and guidance == 0.0:
+        raise DgzError("--guidance-stop-gap without --guidance: the guidance is off", "add e.g. --guidance 0.05")
     if roll is not None and roll not in ("uniform", "narrow", "clear"):
         raise DgzError(f"--roll {roll!r} is not supported", "use --roll uniform, narrow or clear")
     if meta is not None:
@@ -81,6 +85,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
 
         # the scripted env is the one `dgz train` would build for the same options (one home: env_config)
         options = (dict(guidance_gain=guidance, roll=roll or "uniform")
+                   | ({} if guidance_stop_gap is None else dict(guidance_stop_gap=guidance_stop_gap))
                    | ({} if physics_hz is None else dict(physics_hz=physics_hz))
                    | ({} if thumb_open is None else dict(thumb_open=thumb_open)))
         try:
@@ -88,6 +93,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         except ValidationError as exc:
             error = exc.errors()[0]
             option, value, example = {"guidance_gain": ("--guidance", guidance, "0.05"),
+                                      "guidance_stop_gap": ("--guidance-stop-gap", guidance_stop_gap, "0.05"),
                                       "physics_hz": ("--physics-hz", physics_hz, "200"),
                                       "thumb_open": ("--thumb-open", thumb_open, "1")}.get(
                 error["loc"][0], ("--roll", roll, "narrow"))
@@ -126,7 +132,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     ep = cfg.contract.episode
     protocol = dict(lift_height_m=ep.lift_height, hold_s=ep.hold_s, success_fraction=ep.success_fraction,
                     trials_per_object=trials, seed=seed, episode_steps=ep.episode_steps,
-                    guidance_gain=cfg.contract.guidance.gain, roll=cfg.roll,
+                    guidance_gain=cfg.contract.guidance.gain, guidance_stop_gap_m=cfg.contract.guidance.stop_gap,
+                    roll=cfg.roll,
                     physics_hz=round(1.0 / ep.physics_dt, 6),
                     hardware_view=None if view is None else view.model_dump(), feature_scale=feature_scale,
                     approach_distance_m=cfg.approach_distance, approach_cone_rad=cfg.approach_cone,

@@ -69,6 +69,9 @@ class TrainConfig(BaseModel):
                                                 "GraspXL's code (see docs/training.md)")
     guidance_gain: float = Field(0.0, ge=0, le=1, description="wrist guidance gain toward the object centroid "
                                  "(0 = off: the policy moves the wrist alone, as in the paper's text)")
+    guidance_stop_gap: float | None = Field(None, gt=0, le=0.25, description="m: the guidance stops moving the palm "
+                                            "toward the object along its normal once the palm is this close to the "
+                                            "surface (contract guidance.stop_gap; None = it presses on)")
     roll: Literal["uniform", "narrow", "clear"] = Field("uniform", description="start roll: uniform, closing "
                                                         "across the object's narrowest width (narrow), or that "
                                                         "among the rolls whose hand clears the table (clear)")
@@ -140,7 +143,7 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                                    finger_residual=cfg.finger_residual,
                                                    wrist_translation_residual=cfg.wrist_translation_residual),
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
-                               guidance=WristGuidance(gain=cfg.guidance_gain),
+                               guidance=WristGuidance(gain=cfg.guidance_gain, stop_gap=cfg.guidance_stop_gap),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
                                                   close_guide=cfg.prior_close_guide),
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))

@@ -132,8 +132,7 @@ class Trainer:
             if theirs != ours:
                 raise DgzError(f"{where}: its {what} differs from this run's (at {first_difference(theirs, ours)})",
                                "--init-from takes its run config from the checkpoint; drop the option or --config "
-                               f"entry that changes it (only the residual factors {', '.join(RESIDUAL_FACTORS[:-1])} and "
-                               f"{RESIDUAL_FACTORS[-1]} may change)")
+                               f"entry that changes it (only {', '.join(FINE_TUNABLE)} may change)")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
         if self.model.wrist_is_action and not meta.contract.action.wrist_is_action:
             # the checkpoint's wrist head never had a gradient (its dims were not scored): start the new
@@ -264,13 +263,17 @@ class Trainer:
 
 
 RESIDUAL_FACTORS = ("wrist_residual", "wrist_translation_residual", "finger_residual")
+FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + ("guidance.stop_gap",)
 
 
 def _without_residual_factors(contract) -> dict:
-    """The contract as a dict, less the action's residual factors: the only contract fields a fine-tune may
-    change, since they scale the policy's output without changing any tensor's shape or meaning."""
+    """The contract as a dict, less the fields a fine-tune may change (``FINE_TUNABLE``: the action's residual
+    factors and the guidance's stop gap): they change how the command is composed, not any tensor's shape or
+    meaning."""
     dump = contract.model_dump()
-    dump["action"] = {k: v for k, v in dump["action"].items() if k not in RESIDUAL_FACTORS}
+    for path in FINE_TUNABLE:
+        part, field = path.split(".")
+        dump[part] = {k: v for k, v in dump[part].items() if k != field}
     return dump
 
 

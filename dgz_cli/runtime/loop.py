@@ -239,7 +239,8 @@ class Runner:
         if self.grasp_offset is None or not isinstance(obs, dict) or "global" not in obs:
             raise DgzError("the policy's contract guides the wrist, but its observation has no grasp target",
                            "give the policy its own observation builder (trained checkpoints bring one)")
-        return c.guidance_action(obs["global"], self.grasp_offset[None], np.array([phase == "grasp"]))[0]
+        return c.guidance_action(obs["global"], self.grasp_offset[None], np.array([phase == "grasp"]),
+                                 obs.get("nodes"), obs.get("node_valid"))[0]
 
     # -- entry point -------------------------------------------------------------------------------
     def run(self, start_pose: np.ndarray | None = None) -> RunResult:

@@ -221,13 +221,14 @@ class GraspEnv:
         new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,
                                      self.joint_slot, self.limits[..., 0], self.limits[..., 1], act, q=self.buf["q"])
         self.set_targets(new_targets, alpha if act.mode == "primitive" else np.zeros_like(alpha))
-        self.move_wrist(wrist * act.wrist_scale + self.guidance(self._global), self.lifting() * ep.lift_per_step())
+        self.move_wrist(wrist * act.wrist_scale + self.guidance(self._global, self._nodes),
+                        self.lifting() * ep.lift_per_step())
 
-    def guidance(self, glob: np.ndarray) -> np.ndarray:
-        """(B, 6) the contract's wrist guidance from observations' global features (B, global_dim), the
-        same computation the deploy runtime makes from the observation it builds."""
+    def guidance(self, glob: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+        """(B, 6) the contract's wrist guidance from an observation's global (B, global_dim) and node
+        (B, N, node_dim) features, the same computation the deploy runtime makes from the observation it builds."""
         c = self.cfg.contract
-        return c.guidance_action(glob, self.grasp_offset, self.t < c.episode.grasp_steps)
+        return c.guidance_action(glob, self.grasp_offset, self.t < c.episode.grasp_steps, nodes, self.node_valid)
 
     def set_targets(self, targets: np.ndarray, alpha: np.ndarray | None = None) -> None:
         """New finger joint targets (B, L) rad for the next step; ``alpha`` (B, N, n_prim) the normalized

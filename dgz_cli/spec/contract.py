@@ -126,11 +126,23 @@ class WristGuidance(_Frozen):
 
     gain: float = Field(0.0, ge=0, le=1)
     speed_cap: float = Field(0.01, gt=0, le=0.1, description="m per control step")
+    stop_gap: float | None = Field(None, gt=0, le=0.3, description="m: once the palm centre is within this of the "
+                                   "nearest object-surface point (the wrist node's d), the guidance no longer moves "
+                                   "the palm toward the object along its normal n (it still centres it in f and l); "
+                                   "None = it presses on until the grasp point reaches the target")
 
-    def delta(self, target_m: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray) -> np.ndarray:
+    def delta(self, target_m: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray,
+              palm_gap: np.ndarray | None = None) -> np.ndarray:
         """(B, 6) wrist command (m, palm frame; zero rotation) from the palm → target vectors (B, 3) m and the
-        palm → grasp-point offsets (B, 3) m, both in the palm frame; ``active`` (B,) bool."""
+        palm → grasp-point offsets (B, 3) m, both in the palm frame; ``active`` (B,) bool; ``palm_gap`` (B,) m,
+        palm centre → nearest surface point (needed when ``stop_gap`` is set)."""
         step = self.gain * (np.asarray(target_m) - np.asarray(grasp_offset))
+        if self.stop_gap is not None:
+            if palm_gap is None:
+                raise ValueError("WristGuidance.stop_gap needs the palm gap")
+            near = np.asarray(palm_gap)[..., None] < self.stop_gap
+            step = step.copy()
+            step[..., 2:3] = np.where(near, np.minimum(step[..., 2:3], 0.0), step[..., 2:3])  # palm frame z = n
         norm = np.linalg.norm(step, axis=-1, keepdims=True)
         step = step * np.minimum(1.0, self.speed_cap / np.maximum(norm, 1e-12))
         out = np.zeros(step.shape[:-1] + (6,))
@@ -293,17 +305,38 @@ class ControlContract(_Frozen):
             raise ValueError("the closing prior reads the 'phase' block: use an observation layout that has it")
         if self.prior.enabled and self.prior.close_guide is not None and not self.observation.has("guide"):
             raise ValueError("prior.close_guide reads the 'guide' block: use an observation layout that has it")
+        if self.guidance.stop_gap is not None and self.guidance.stop_gap >= self.observation.distance_clip:
+            raise ValueError(f"guidance.stop_gap {self.guidance.stop_gap} m must be below the observation's "
+                             f"distance_clip {self.observation.distance_clip} m (the palm gap is read from d)")
         return self
 
-    def guidance_action(self, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray) -> np.ndarray:
+    def palm_gap(self, nodes: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
+        """(B,) m, palm centre → nearest object-surface point: the norm of the wrist node's ``d`` block in the
+        observation's nodes (B, N, node_dim), node_valid (B, N); inf for a graph without a wrist node."""
+        from dgz_cli.spec.models import NODE_TYPES
+
+        lay = self.observation
+        wrist_col = lay.node_col("node_type").start + NODE_TYPES.index("wrist")
+        is_wrist = (np.asarray(nodes)[..., wrist_col] > 0) & np.asarray(node_valid, bool)
+        d = np.asarray(nodes)[..., lay.node_col("d")].astype(np.float64) * lay.distance_clip
+        return np.where(is_wrist, np.linalg.norm(d, axis=-1), np.inf).min(-1)
+
+    def guidance_action(self, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray,
+                        nodes: np.ndarray | None = None, node_valid: np.ndarray | None = None) -> np.ndarray:
         """(B, 6) the wrist guidance from observations' global features (B, global_dim): the target block
-        decoded to metres, then :meth:`WristGuidance.delta`; zeros when the guidance is off. The simulator
-        and the deploy loop both call this, on the observation the policy sees."""
+        decoded to metres, then :meth:`WristGuidance.delta`; zeros when the guidance is off. With
+        ``guidance.stop_gap`` it also reads the palm gap from the nodes (B, N, node_dim) and node_valid (B, N).
+        The simulator and the deploy loop both call this, on the observation the policy sees."""
         if self.guidance.gain == 0.0:
             return np.zeros(np.shape(glob)[:1] + (6,))
         lay = self.observation
         target = np.asarray(glob)[:, lay.global_col("target")].astype(np.float64) * lay.target_scale
-        return self.guidance.delta(target, grasp_offset, active)
+        gap = None
+        if self.guidance.stop_gap is not None:
+            if nodes is None or node_valid is None:
+                raise ValueError("guidance.stop_gap reads the palm gap: pass the observation's nodes and node_valid")
+            gap = self.palm_gap(nodes, node_valid)
+        return self.guidance.delta(target, grasp_offset, active, gap)
 
     def compose(self, policy_action: np.ndarray, nodes: np.ndarray, glob: np.ndarray, closing: np.ndarray,
                 node_valid: np.ndarray) -> np.ndarray:
@@ -332,8 +365,7 @@ class ControlContract(_Frozen):
 
         wrist_col = lay.node_col("node_type").start + NODE_TYPES.index("wrist")
         is_wrist = (nodes[..., wrist_col] > 0) & node_valid
-        d = nodes[..., lay.node_col("d")].astype(np.float64) * lay.distance_clip
-        gap = np.where(is_wrist, np.linalg.norm(d, axis=-1), np.inf).min(-1)  # (B,) inf: no wrist node
+        gap = self.palm_gap(nodes, node_valid)
         step = np.rint(glob[:, lay.global_col("phase")].astype(np.float64)[:, 0] * self.episode.episode_steps)
         close = (gap < self.prior.close_gap) | (step >= self.prior.close_step)
         if self.prior.close_guide is not None:
