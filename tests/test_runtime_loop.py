@@ -345,3 +345,30 @@ def test_policy_brings_its_observation_builder():
         policy = WithBuilder(hand.spec)
         res = Runner(hand, hand.spec, policy, RunConfig(contract=fast(3, 0, 0.0))).run()
     assert res.ok and policy.observation_builder.n == 3
+
+
+def test_guidance_stop_gap_needs_the_palm_distance_in_the_observation():
+    """A contract whose guidance stops near the object reads the palm → surface distance from the observation's
+    nodes; an observation without them ends in a safe stop that says so (not a traceback, no guessed gap)."""
+    from dgz_cli.hw.factory import make_sim_driver
+    from dgz_cli.spec.contract import WristGuidance
+
+    contract = fast(3, 0, 0.0).model_copy(update=dict(guidance=WristGuidance(gain=0.05, stop_gap=0.05)))
+
+    class GlobalOnly:
+        def reset(self, spec, context):
+            pass
+
+        def build(self, step):
+            return {"global": np.zeros((1, contract.observation.global_dim))}
+
+    class Policy(Normalized):
+        observation_builder = GlobalOnly()
+
+        def act(self, obs):
+            return np.zeros(self.n)
+
+    with make_sim_driver("dgz_tri") as hand:
+        res = Runner(hand, hand.spec, Policy(hand.spec), RunConfig(contract=contract),
+                     grasp_offset=np.zeros(3)).run()
+    assert not res.ok and res.steps == 0 and "no palm → surface distance" in res.reason

@@ -34,7 +34,8 @@ def scene(hand: str, obj: str, out: Path, asset_root: str | None, console: Conso
 
 def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int, zero_shot: bool,
              json_out: Path | None, csv_out: Path | None, asset_root: str | None, console: Console, *,
-             guidance: float = 0.0, guidance_stop_gap: float | None = None, roll: str | None = None, video: Path | None = None, video_episodes: int = 2,
+             guidance: float = 0.0, guidance_stop_gap: float | None = None, roll: str | None = None,
+             video: Path | None = None, video_episodes: int = 2,
              perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
              physics_hz: float | None = None, thumb_open: float | None = None) -> int:
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize

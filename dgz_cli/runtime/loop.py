@@ -239,6 +239,10 @@ class Runner:
         if self.grasp_offset is None or not isinstance(obs, dict) or "global" not in obs:
             raise DgzError("the policy's contract guides the wrist, but its observation has no grasp target",
                            "give the policy its own observation builder (trained checkpoints bring one)")
+        if c.guidance.stop_gap is not None and not {"nodes", "node_valid"} <= obs.keys():
+            raise DgzError("the policy's contract stops the wrist guidance near the object, but its observation has "
+                           "no palm → surface distance (nodes)",
+                           "give the policy its own observation builder (trained checkpoints bring one)")
         return c.guidance_action(obs["global"], self.grasp_offset[None], np.array([phase == "grasp"]),
                                  obs.get("nodes"), obs.get("node_valid"))[0]
 
