@@ -127,8 +127,8 @@ class Trainer:
         if meta.student is not None:
             raise DgzError(f"{where}: is a distilled student", "fine-tune a `dgz train` checkpoint (its teacher)")
         for what, theirs, ours in (("model", meta.model.model_dump(), self.model.cfg.model_dump()),
-                                   ("control contract", _without_residual_factors(meta.contract),
-                                    _without_residual_factors(self.env.cfg.contract))):
+                                   ("control contract", _without_fine_tunable(meta.contract),
+                                    _without_fine_tunable(self.env.cfg.contract))):
             if theirs != ours:
                 raise DgzError(f"{where}: its {what} differs from this run's (at {first_difference(theirs, ours)})",
                                "--init-from takes its run config from the checkpoint; drop the option or --config "
@@ -266,7 +266,7 @@ RESIDUAL_FACTORS = ("wrist_residual", "wrist_translation_residual", "finger_resi
 FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + ("guidance.stop_gap",)
 
 
-def _without_residual_factors(contract) -> dict:
+def _without_fine_tunable(contract) -> dict:
     """The contract as a dict, less the fields a fine-tune may change (``FINE_TUNABLE``: the action's residual
     factors and the guidance's stop gap): they change how the command is composed, not any tensor's shape or
     meaning."""

@@ -141,7 +141,6 @@ class WristGuidance(_Frozen):
             if palm_gap is None:
                 raise ValueError("WristGuidance.stop_gap needs the palm gap")
             near = np.asarray(palm_gap)[..., None] < self.stop_gap
-            step = step.copy()
             step[..., 2:3] = np.where(near, np.minimum(step[..., 2:3], 0.0), step[..., 2:3])  # palm frame z = n
         norm = np.linalg.norm(step, axis=-1, keepdims=True)
         step = step * np.minimum(1.0, self.speed_cap / np.maximum(norm, 1e-12))
@@ -310,16 +309,20 @@ class ControlContract(_Frozen):
                              f"distance_clip {self.observation.distance_clip} m (the palm gap is read from d)")
         return self
 
+    def wrist_nodes(self, nodes: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
+        """(B, N) bool: the valid nodes whose ``node_type`` block marks the wrist, in an observation's nodes
+        (B, N, node_dim) and node_valid (B, N)."""
+        from dgz_cli.spec.models import NODE_TYPES
+
+        wrist_col = self.observation.node_col("node_type").start + NODE_TYPES.index("wrist")
+        return (np.asarray(nodes)[..., wrist_col] > 0) & np.asarray(node_valid, bool)
+
     def palm_gap(self, nodes: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
         """(B,) m, palm centre → nearest object-surface point: the norm of the wrist node's ``d`` block in the
         observation's nodes (B, N, node_dim), node_valid (B, N); inf for a graph without a wrist node."""
-        from dgz_cli.spec.models import NODE_TYPES
-
         lay = self.observation
-        wrist_col = lay.node_col("node_type").start + NODE_TYPES.index("wrist")
-        is_wrist = (np.asarray(nodes)[..., wrist_col] > 0) & np.asarray(node_valid, bool)
         d = np.asarray(nodes)[..., lay.node_col("d")].astype(np.float64) * lay.distance_clip
-        return np.where(is_wrist, np.linalg.norm(d, axis=-1), np.inf).min(-1)
+        return np.where(self.wrist_nodes(nodes, node_valid), np.linalg.norm(d, axis=-1), np.inf).min(-1)
 
     def guidance_action(self, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray,
                         nodes: np.ndarray | None = None, node_valid: np.ndarray | None = None) -> np.ndarray:
@@ -361,10 +364,7 @@ class ControlContract(_Frozen):
         out = np.zeros((b, act.dim(n)))
         if not self.prior.enabled:
             return out
-        from dgz_cli.spec.models import NODE_TYPES
-
-        wrist_col = lay.node_col("node_type").start + NODE_TYPES.index("wrist")
-        is_wrist = (nodes[..., wrist_col] > 0) & node_valid
+        is_wrist = self.wrist_nodes(nodes, node_valid)
         gap = self.palm_gap(nodes, node_valid)
         step = np.rint(glob[:, lay.global_col("phase")].astype(np.float64)[:, 0] * self.episode.episode_steps)
         close = (gap < self.prior.close_gap) | (step >= self.prior.close_step)
