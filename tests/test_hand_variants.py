@@ -77,7 +77,7 @@ def test_train_on_a_generated_folder_records_its_hands(base, tmp_path):
         assert hands[p.stem] == hashlib.sha256(p.read_bytes()).hexdigest()
         assert load_spec(p).provenance.urdf == str(p.with_suffix(".urdf").resolve())  # absolute: builds anywhere
     # a second resolution reuses the current specs instead of onboarding again
-    from dgz_cli.cli.train_cmd import hand_specs
+    from dgz_cli.cli.hand_refs import hand_specs
 
     before = [p.stat().st_mtime_ns for p in specs]
     assert list(hand_specs((f"generated:{folder}",), None).values()) == specs
@@ -104,7 +104,7 @@ def test_distill_on_a_generated_folder_records_its_hands(base, tmp_path):
 
 @pytest.mark.parametrize("make", ["missing", "empty", "file"])
 def test_a_bad_generated_folder_is_one_clear_line(tmp_path, make):
-    from dgz_cli.cli.train_cmd import hand_specs
+    from dgz_cli.cli.hand_refs import hand_specs
 
     folder = tmp_path / "hands"
     if make == "empty":
@@ -172,3 +172,31 @@ def test_variants_with_a_long_thumb_keep_the_thumb_rot_sign(tmp_path, hand, inde
     assert rot, "the variant keeps its thumb ROT joint"
     result = check_one(tmp_path / f"{name}.urdf", labels, truth_lint=False)
     assert result.outcome == "agree", result.mismatches or result.error
+
+
+def test_eval_takes_a_generated_folder_like_train(base, tmp_path):
+    """`dgz eval --hand generated:DIR` evaluates every hand in DIR (onboarded there), as `dgz train --hands` does."""
+    import subprocess
+    import sys
+
+    spec, urdf = base
+    folder = tmp_path / "gen"
+    write_variants(spec, urdf, folder, 5, 2)
+    out = tmp_path / "r.json"
+    res = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "eval", "--policy", "scripted", "--hand",
+                          f"dgz_tri,generated:{folder}", "--objects", "sphere", "--trials", "1", "--json", str(out)],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert set(json.loads(out.read_text())["hands"]) == {"dgz_tri", "dgz_tri_v5_0000", "dgz_tri_v5_0001"}
+    assert sorted(p.stem for p in folder.glob("*.yaml")) == ["dgz_tri_v5_0000", "dgz_tri_v5_0001"]
+
+
+def test_eval_names_its_own_option_for_a_bad_folder(tmp_path):
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "dgz_cli.cli.app", "eval", "--hand", f"generated:{tmp_path / 'no'}",
+                          "--objects", "sphere", "--trials", "1"], capture_output=True, text=True)
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    line = (res.stdout + res.stderr).strip().splitlines()[0]
+    assert line.startswith(f"error: --hand generated:{tmp_path / 'no'}:") and "is not a folder" in line

@@ -213,7 +213,9 @@ def scene(
 def evaluate(
     policy: str = typer.Option("scripted", "--policy", help="'scripted' (the spec-only baseline), a run/policy "
                                "directory, or a name under policies/"),
-    hand: Optional[List[str]] = typer.Option(None, "--hand", help="shipped hand name or spec file (repeatable)"),
+    hand: Optional[List[str]] = typer.Option(None, "--hand", help="shipped hand name, spec file, or generated:DIR "
+                                             "(every hand `dgz hands generate` wrote into DIR, onboarded there as "
+                                             "for `dgz train`); comma-separated or repeated"),
     objects: str = typer.Option("ycb45", "--objects", help="ycb45, primitives, or comma-separated object names"),
     trials: int = typer.Option(25, "--trials", min=1, help="episodes per (hand, object)"),
     seed: int = typer.Option(0, "--seed", help="randomization seed"),

@@ -53,7 +53,7 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     from dgz_cli.rl.distill import Distiller
     from dgz_cli.sim.hardware import HardwareViewEnv
     from dgz_cli.sim.objects import resolve_objects
-    from dgz_cli.cli.train_cmd import hand_specs
+    from dgz_cli.cli.hand_refs import hand_specs
     from dgz_cli.spec.catalog import policy_ref
     from dgz_cli.spec.errors import DgzError
     from dgz_cli.spec.hardware_view import student_contract

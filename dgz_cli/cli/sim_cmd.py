@@ -38,9 +38,9 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
              video: Path | None = None, video_episodes: int = 2,
              perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
              physics_hz: float | None = None, thumb_open: float | None = None) -> int:
+    from dgz_cli.cli.hand_refs import hand_specs
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
-    from dgz_cli.spec.catalog import resolve_spec
     from dgz_cli.spec.envconfig import EnvConfig
     from dgz_cli.spec.io import atomic_write, check_output, load_spec
     from dgz_cli.spec.transform import scale_lengths
@@ -56,7 +56,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         video = _video_dir(video, console)  # None (with a one-line note) where nothing can render
     make_policy, meta = _policy_factory(policy)
     # the URDF-prior sensitivity test: link lengths scaled in the policy's physical features only
-    specs = [scale_lengths(load_spec(resolve_spec(h)), feature_scale) for h in hands]
+    spec_paths = list(hand_specs(hands, asset_root, "--hand").values())  # names, spec files and generated:DIR
+    specs = [scale_lengths(load_spec(p), feature_scale) for p in spec_paths]
     if meta is None and feature_scale != 1.0:
         console.print("[yellow]note:[/] --feature-scale changes only the policy's physical features, which the "
                       "scripted policy does not read")
@@ -107,9 +108,9 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
     if meta is not None:
         from dgz_cli.rl.checkpoint import spec_hash
 
-        for h, spec in zip(hands, specs):
+        for path, spec in zip(spec_paths, specs):
             old_hash = meta.training_hands.get(spec.name)
-            if old_hash is not None and old_hash != spec_hash(resolve_spec(h)):
+            if old_hash is not None and old_hash != spec_hash(path):
                 console.print(f"[yellow]warning:[/] the spec of training hand {escape(spec.name)} changed since "
                               f"{escape(policy)} was trained")
     objs = resolve_objects(objects, asset_root)

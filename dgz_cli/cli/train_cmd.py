@@ -62,33 +62,10 @@ def _init_directory(ref: str) -> Path:
     return directory
 
 
-def hand_specs(hands, asset_root: str | None) -> dict[str, Path]:
-    """``--hands`` entries → spec paths by hand name: shipped names and spec paths as they are, and
-    ``generated:DIR`` as every hand in DIR (onboarded there unless a current spec is already beside it)."""
-    from dgz_cli.onboard.folder import PREFIX, onboard_folder
-    from dgz_cli.spec.catalog import asset_root as resolve_root
-    from dgz_cli.spec.catalog import hand_name, resolve_spec
-    from dgz_cli.spec.errors import DgzError
-
-    out: dict[str, Path] = {}
-    for h in hands:
-        if h.startswith(PREFIX):
-            folder = Path(h[len(PREFIX):]).expanduser()
-            paths = onboard_folder(folder, resolve_root(asset_root), h)
-        else:
-            paths = [resolve_spec(h)]
-        for p in paths:
-            name = hand_name(p) if h.startswith(PREFIX) else h
-            if name in out:
-                raise DgzError(f"--hands: hand '{name}' is named twice ({out[name]} and {p})",
-                               "train on each hand once; rename one of the URDFs")
-            out[name] = p
-    return out
-
-
 def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None, on_warm_start=None):
     """The composition root of training: specs, objects and the env from ``cfg`` (a TrainConfig), then the
     Trainer that receives them. Bad input fails here, before anything is written."""
+    from dgz_cli.cli.hand_refs import hand_specs
     from dgz_cli.policy.presets import PRESETS
     from dgz_cli.rl import checkpoint
     from dgz_cli.rl.checkpoint import spec_hash

@@ -1,4 +1,5 @@
-"""A folder of hand URDFs as training hands (`dgz train --hands allegro,generated:DIR`).
+"""A folder of hand URDFs as hands to train or evaluate on (`dgz train --hands allegro,generated:DIR`,
+`dgz eval --hand generated:DIR`).
 
 Every ``NAME.urdf`` in the folder (written by `dgz hands generate`, random hands or variants) becomes a spec
 ``NAME.yaml`` beside it: onboarded and linted exactly as `dgz onboard` does, or reused when the spec already
@@ -33,19 +34,20 @@ def _current(spec_path: Path, urdf: Path) -> bool:
 def onboard_folder(folder: Path, asset_root: Path | None = None, reference: str | None = None) -> list[Path]:
     """The spec of every URDF in ``folder`` (sorted by name), onboarding those without a current one.
 
-    ``reference`` is how the user named the folder (for messages). Raises one-line errors naming the folder
+    ``reference`` is the option and value the user named the folder with, e.g. ``--hands generated:DIR`` (for
+    messages). Raises one-line errors naming the folder
     (missing, no URDF) or the hand onboarding or lint refused."""
     from dgz_cli.onboard.pipeline import onboard
     from dgz_cli.onboard.verify import lint_file
     from dgz_cli.spec.io import write_spec
 
-    ref = reference or f"{PREFIX}{folder}"
+    ref = reference or f"--hands {PREFIX}{folder}"
     if not folder.is_dir():
-        raise OnboardError(f"--hands {ref}: {folder} is not a folder",
+        raise OnboardError(f"{ref}: {folder} is not a folder",
                            "write hands into it with `dgz hands generate -o DIR` (or --variants-of HAND)")
     urdfs = sorted(folder.glob("*.urdf"))
     if not urdfs:
-        raise OnboardError(f"--hands {ref}: {folder} holds no .urdf file",
+        raise OnboardError(f"{ref}: {folder} holds no .urdf file",
                            "write hands into it with `dgz hands generate -o DIR` (or --variants-of HAND)")
     out = []
     for urdf in urdfs:
@@ -55,12 +57,12 @@ def onboard_folder(folder: Path, asset_root: Path | None = None, reference: str 
             try:
                 result = onboard(urdf, name, asset_root)
             except DgzError as exc:
-                raise OnboardError(f"--hands {ref}: {urdf.name} was refused by onboarding ({exc.message})",
+                raise OnboardError(f"{ref}: {urdf.name} was refused by onboarding ({exc.message})",
                                    f"remove {urdf.name} from {folder}, or fix it and retry") from None
             errors = [f for f in lint_file(result.spec, spec_path, str(asset_root) if asset_root else None,
                                            result.poser) if f.level == "error"]
             if errors:
-                raise OnboardError(f"--hands {ref}: {urdf.name} fails lint ({errors[0].message})",
+                raise OnboardError(f"{ref}: {urdf.name} fails lint ({errors[0].message})",
                                    f"remove {urdf.name} from {folder}, or fix it and retry")
             write_spec(result.spec, spec_path, inputs=(urdf,))
         out.append(spec_path)
