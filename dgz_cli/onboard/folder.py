@@ -35,8 +35,8 @@ def onboard_folder(folder: Path, asset_root: Path | None = None, reference: str 
     """The spec of every URDF in ``folder`` (sorted by name), onboarding those without a current one.
 
     ``reference`` is the option and value the user named the folder with, e.g. ``--hands generated:DIR`` (for
-    messages). Raises one-line errors naming the folder
-    (missing, no URDF) or the hand onboarding or lint refused."""
+    messages). Raises one-line errors naming the folder (missing, no URDF) or the hand onboarding or lint
+    refused."""
     from dgz_cli.onboard.pipeline import onboard
     from dgz_cli.onboard.verify import lint_file
     from dgz_cli.spec.io import write_spec
