@@ -30,26 +30,37 @@ def test_refuses_fifo_and_folder(tmp_path):
 
 
 @pytest.mark.parametrize("where", ["mkstemp", "fsync"])
-def test_a_stop_signal_inside_a_write_lands_after_it(monkeypatch, tmp_path, where):
+@pytest.mark.parametrize("inherited", ["default", "ignored"])
+def test_a_stop_signal_inside_a_write_lands_after_it(monkeypatch, tmp_path, where, inherited):
     """SIGTERM makes `dgz train` raise KeyboardInterrupt and save; a stop that arrived inside a periodic
     checkpoint's write (once between mkstemp creating the file and returning its name) left a .tmp behind.
-    The stop now lands when the write is done: the file is whole, nothing else is in the folder."""
+    The stop now lands when the write is done, on the handler that was in place: Python's Ctrl-C handler raises
+    then; an ignored SIGINT (a background job, nohup) stays ignored. Either way the file is whole and nothing
+    else is in the folder. The handler is set here, not inherited, so the test means the same however it runs."""
     import signal
     import tempfile
 
+    handler = signal.default_int_handler if inherited == "default" else signal.SIG_IGN
     real = {"mkstemp": tempfile.mkstemp, "fsync": os.fsync}[where]
 
     def stop_inside(*args, **kwargs):
         result = real(*args, **kwargs)
-        signal.raise_signal(signal.SIGINT)  # Ctrl-C's handler raises KeyboardInterrupt, as train's SIGTERM one does
+        signal.raise_signal(signal.SIGINT)
         return result
 
     monkeypatch.setattr(tempfile if where == "mkstemp" else os, where, stop_inside)
-    with pytest.raises(KeyboardInterrupt):
-        atomic_write_bytes(tmp_path / "model.safetensors", b"weights")
+    before = signal.signal(signal.SIGINT, handler)
+    try:
+        if inherited == "default":
+            with pytest.raises(KeyboardInterrupt):
+                atomic_write_bytes(tmp_path / "model.safetensors", b"weights")
+        else:
+            atomic_write_bytes(tmp_path / "model.safetensors", b"weights")
+        assert signal.getsignal(signal.SIGINT) is handler
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert (tmp_path / "model.safetensors").read_bytes() == b"weights"
     assert _leftovers(tmp_path) == []
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def test_refuses_device_nodes_without_touching_them():
