@@ -1,6 +1,7 @@
 """Length of every finger of the shipped hands, from what the policy sees: the link vectors in each spec's physical
 features (``link_x/y/z`` × ``features.normalization.length``), summed from the finger's second node to its tip.
-The finger's first node hangs off the palm, so its link (palm → finger base) is left out.
+The finger's first node hangs off the palm, so its link (palm → finger base) is left out. A finger whose first
+node is a metacarpal inside the palm (Shadow's little finger) counts the metacarpal → knuckle link as well.
 
     .venv/bin/python tools/finger_lengths.py            # all shipped hands, mm
     .venv/bin/python tools/finger_lengths.py ability inspire
