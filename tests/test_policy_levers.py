@@ -103,6 +103,18 @@ def test_graspxl_terms_by_hand():
                        np.array([[0.0, 0.3, 0.4]]), np.array([0.25]), np.array([True]), np.array([False]),
                        np.array([True]), 0.5, residual_sq=np.array([0.16]))
     assert graspxl_total(t2, GraspXLReward(residual=2.0))[0] == pytest.approx(graspxl_total(t, w8)[0] - 0.32)
+    assert t["displace"][0] == 0  # no displacement given
+
+
+def test_displacement_term_counts_the_grasp_phase_only_and_saturates_at_the_push_limit():
+    d, w = np.zeros((3, 1, 3)), np.ones((3, 1))
+    no = np.zeros(3, bool)
+    t = graspxl_terms(d, np.zeros((3, 1), bool), np.zeros((3, 1)), w, np.zeros((3, 3)), np.zeros(3),
+                      np.array([False, False, True]), no, no, 0.5,
+                      displacement=np.array([0.06, 0.9, 0.06]), push_limit=0.3)
+    assert t["displace"] == pytest.approx([-0.2, -1.0, 0.0])  # 6 cm of 30; capped; lifting: not counted
+    base = graspxl_total(t, GraspXLReward())
+    assert graspxl_total(t, GraspXLReward(displace=2.0)) == pytest.approx(base + 2.0 * t["displace"])
 
 
 def test_residual_term_counts_only_active_dims():
@@ -437,3 +449,15 @@ def test_clear_roll_keeps_shadows_forearm_off_the_table():
         env.close()
     assert (lowest["clear"] >= lowest["narrow"] - 1e-9).all()
     assert (lowest["narrow"] < -0.03).any() and (lowest["clear"] > lowest["narrow"] + 0.02).any()
+
+
+def test_the_env_rewards_the_objects_displacement_from_where_it_settled():
+    cfg = EnvConfig(contract=ControlContract(observation=MARKOV), reward_variant="graspxl",
+                    graspxl=GraspXLReward(displace=2.0))
+    env = _env(cfg)
+    env.reset()
+    env.p0[0] -= [0.06, 0.0, 0.0]  # as if the object had settled 6 cm away from where it is now
+    _, _, _, _, info = env.step(np.zeros((1, env.action_dim)))
+    moved = np.linalg.norm(env.buf["xpos"][0, env.N] - env.p0[0])
+    assert moved == pytest.approx(0.06, abs=0.005)
+    assert info["reward_terms"]["displace"][0] == pytest.approx(-moved / cfg.graspxl.push_limit)

@@ -95,6 +95,8 @@ class TrainConfig(BaseModel):
                                                      "None = wrist_residual)")
     residual_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −mean a² over the "
                                    "policy's active action dims (its residual on the prior; 0 = off)")
+    displace_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −(the object's "
+                                   "displacement during the grasp phase / push_limit) (0 = off)")
     critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "
                                                   "paper), or a separate small critic (its own 32×4 GCN trunk)")
     failure_priority: float | None = Field(None, gt=0, le=10, description="prioritised sampling of failing (hand, "
@@ -148,4 +150,4 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                                   close_guide=cfg.prior_close_guide),
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
-                     graspxl=GraspXLReward(residual=cfg.residual_weight), roll=cfg.roll, early_stop=cfg.early_stop)
+                     graspxl=GraspXLReward(residual=cfg.residual_weight, displace=cfg.displace_weight), roll=cfg.roll, early_stop=cfg.early_stop)

@@ -270,7 +270,8 @@ class GraspEnv:
             palm_v = self._palm_velocity * (self.t > ep.grasp_steps)[:, None]
             terms = graspxl_terms(d_world, contact, force / cfg.contract.observation.force_scale, self.node_weight,
                                   obj_vel - palm_v, rise, self.t > ep.grasp_steps, success, pushed, ep.lift_height,
-                                  residual_sq=self._residual_sq)
+                                  residual_sq=self._residual_sq, displacement=disp,
+                                  push_limit=cfg.graspxl.push_limit)
             reward = graspxl_total(terms, cfg.graspxl)
         else:
             terms = reward_terms(d_world, contact, force / cfg.contract.observation.force_scale, dq, alpha, self.mask,

@@ -44,16 +44,19 @@ def total(terms: dict[str, np.ndarray], w: RewardWeights, use_pen: bool = True) 
     return r + (w.pen * terms["pen"] if use_pen else 0.0)
 
 
-GRASPXL_TERMS = ("dis", "contact", "force", "objvel", "lift", "success", "push", "residual")
+GRASPXL_TERMS = ("dis", "contact", "force", "objvel", "lift", "success", "push", "residual", "displace")
 
 
 def graspxl_terms(d: np.ndarray, contact: np.ndarray, force: np.ndarray, node_weight: np.ndarray,
                   v_rel: np.ndarray, rise: np.ndarray, lifting: np.ndarray, success: np.ndarray, pushed: np.ndarray,
-                  lift_height: float, residual_sq: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                  lift_height: float, residual_sq: np.ndarray | None = None,
+                  displacement: np.ndarray | None = None, push_limit: float = 0.3) -> dict[str, np.ndarray]:
     """Unweighted terms of the GraspXL-code reward (see ``GraspXLReward``), each (B,). d (B,N,3) m; contact
     (B,N) bool; force (B,N) in units of force_scale; node_weight (B,N) (0 on padding); v_rel (B,3) m/s the
     object's velocity relative to the palm (the object's own before the lift); rise (B,) m; lifting,
-    success, pushed (B,) bool; residual_sq (B,) the mean squared policy action over its active dims (0 if None)."""
+    success, pushed (B,) bool; residual_sq (B,) the mean squared policy action over its active dims (0 if None);
+    displacement (B,) m the object's distance from where it settled, counted only while not ``lifting``
+    (0 if None)."""
     wsum = np.maximum(node_weight.sum(-1), 1e-9)
     return {
         "dis": -(np.linalg.norm(d, axis=-1) * node_weight).sum(-1) / wsum,
@@ -64,6 +67,8 @@ def graspxl_terms(d: np.ndarray, contact: np.ndarray, force: np.ndarray, node_we
         "success": success.astype(np.float64),
         "push": -pushed.astype(np.float64),
         "residual": -(np.zeros(d.shape[0]) if residual_sq is None else residual_sq),
+        "displace": -(np.zeros(d.shape[0]) if displacement is None
+                      else np.minimum(displacement, push_limit) / push_limit * ~lifting),
     }
 
 
@@ -71,4 +76,4 @@ def graspxl_total(terms: dict[str, np.ndarray], w) -> np.ndarray:
     """Weighted sum with the weights of a ``GraspXLReward`` (``push`` is weighted by its penalty)."""
     return (w.dis * terms["dis"] + w.contact * terms["contact"] + w.force * terms["force"] + w.objvel * terms["objvel"]
             + w.lift * terms["lift"] + w.success * terms["success"] + w.push_penalty * terms["push"]
-            + w.residual * terms["residual"])
+            + w.residual * terms["residual"] + w.displace * terms["displace"])

@@ -33,8 +33,9 @@ class GraspXLReward(_Frozen):
     −‖v_obj − v_palm‖² (the object's velocity relative to the palm; before the lift the palm's is dropped),
     r_lift = clip(rise / lift_height, 0, 1) after the grasp phase, r_success = 1 at the last step of a
     successful episode; r_residual = −mean a² over the policy's active action dims (weight ``residual``,
-    0 by default); pushing the object more than ``push_limit`` during the grasp phase ends the episode
-    (a true terminal state) with ``push_penalty``."""
+    0 by default); r_displace = −min(‖p_obj − p_obj,0‖, push_limit) / push_limit during the grasp phase (the
+    object's displacement from where it settled; weight ``displace``, 0 by default); pushing the object more
+    than ``push_limit`` during the grasp phase ends the episode (a true terminal state) with ``push_penalty``."""
 
     dis: float = Field(0.3, ge=0, le=1e3)
     contact: float = Field(1.0, ge=0, le=1e3)
@@ -48,6 +49,9 @@ class GraspXLReward(_Frozen):
     residual: float = Field(0.0, ge=0, le=1e3, description="weight of r_residual = −mean a² over the policy's active "
                             "action dims (wrist + mask-enabled primitives), its own action before the prior; "
                             "not GraspXL's (issue 11: a residual that cannot undo the prior cheaply); 0 = off")
+    displace: float = Field(0.0, ge=0, le=1e3, description="weight of r_displace, the object's displacement during "
+                            "the grasp phase as a fraction of push_limit; not GraspXL's (issue 11: the push limit "
+                            "alone ignores the 5–30 cm pushes that eval counts as pushed away); 0 = off")
 
 
 class EnvConfig(_Frozen):
