@@ -150,4 +150,5 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                                   close_guide=cfg.prior_close_guide),
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
-                     graspxl=GraspXLReward(residual=cfg.residual_weight, displace=cfg.displace_weight), roll=cfg.roll, early_stop=cfg.early_stop)
+                     graspxl=GraspXLReward(residual=cfg.residual_weight, displace=cfg.displace_weight),
+                     roll=cfg.roll, early_stop=cfg.early_stop)
