@@ -265,8 +265,8 @@ class GraspEnv:
         success = done & self.ok_hold & (risen if ep.hold_steps == 0 else True)
         pushed = np.zeros(B, bool)
         if cfg.reward_variant == "graspxl":
-            obj_pos, obj_vel = self.buf["xpos"][:, self.N], self.buf["qd"][:, self.L:self.L + 3]
-            pushed = (self.t <= ep.grasp_steps) & (np.linalg.norm(obj_pos - self.p0, axis=-1) > cfg.graspxl.push_limit)
+            obj_vel = self.buf["qd"][:, self.L:self.L + 3]
+            pushed = in_grasp & (disp > cfg.graspxl.push_limit)
             palm_v = self._palm_velocity * (self.t > ep.grasp_steps)[:, None]
             terms = graspxl_terms(d_world, contact, force / cfg.contract.observation.force_scale, self.node_weight,
                                   obj_vel - palm_v, rise, self.t > ep.grasp_steps, success, pushed, ep.lift_height,
