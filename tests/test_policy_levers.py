@@ -361,9 +361,9 @@ def test_a_wrist_translation_factor_scales_translation_only_and_holds_the_palm()
     keep ``wrist_residual``. At 0 a translation action of 1 does not move the palm, while the same action with
     the factor unset moves it 1 cm per step along the palm axes."""
     c = ControlContract(observation=MARKOV, action=ActionLayout(wrist_residual=0.25, wrist_translation_residual=0.0))
-    assert c.action.translation_residual == 0.0 and c.action.scales_residual and c.action.wrist_is_action
+    assert c.action.translation_factors == (0.0, 0.0, 0.0) and c.action.scales_residual and c.action.wrist_is_action
     np.testing.assert_array_equal(c.action.residual_gains(2), [0, 0, 0, 0.25, 0.25, 0.25] + [1.0] * 6)
-    assert ActionLayout(wrist_residual=0.25).translation_residual == 0.25
+    assert ActionLayout(wrist_residual=0.25).translation_factors == (0.25, 0.25, 0.25)
     assert not ActionLayout(mask_actions=True, wrist_residual=0.0, wrist_translation_residual=0.0).wrist_is_action
     assert ActionLayout(mask_actions=True, wrist_residual=0.0, wrist_translation_residual=0.5).wrist_is_action
     moved = {}
@@ -379,6 +379,28 @@ def test_a_wrist_translation_factor_scales_translation_only_and_holds_the_palm()
         moved[factor] = float(np.linalg.norm(env.state()["palm_pos"] - palm0))
         env.close()
     assert moved[0.0] < 1e-3 < 0.01 < moved[None]
+
+
+def test_a_per_axis_translation_factor_holds_the_palm_on_that_axis_alone():
+    """``wrist_translation_residual`` (f, l, n) = (1, 0, 1): the same translation action of 1 on all three axes
+    moves the palm about 1 cm per step along f and n and under 2 mm along l (palm frame at the start); the factors
+    reach the action gains in that order, and a factor outside [0, 1] is refused."""
+    action = ActionLayout(wrist_residual=0.25, wrist_translation_residual=(1.0, 0.0, 1.0))
+    assert action.translation_factors == (1.0, 0.0, 1.0)
+    np.testing.assert_array_equal(action.residual_gains(1), [1, 0, 1, 0.25, 0.25, 0.25, 1, 1, 1])
+    with pytest.raises(ValueError, match=r"must lie in \[0, 1\]"):
+        ActionLayout(wrist_translation_residual=(1.0, 1.5, 1.0))
+    env = _env(EnvConfig(contract=ControlContract(observation=MARKOV, action=action)))
+    env.reset()
+    state = env.state()
+    palm0, rot0 = state["palm_pos"][0].copy(), state["palm_rot"][0].copy()
+    a = np.zeros((1, env.action_dim))
+    a[:, :3] = 1.0
+    for _ in range(3):
+        env.step(a)
+    f, l, n = rot0.T @ (env.state()["palm_pos"][0] - palm0)
+    env.close()
+    assert abs(l) < 0.005 and 0.02 < f < 0.04 and 0.02 < n < 0.04  # l would be 0.03 at a factor of 1
 
 
 def test_early_stop_ends_hopeless_episodes_in_training_only():

@@ -151,7 +151,7 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     cfg = _load_config({"init_from": str(tmp_path / "src"), "wrist_residual": 0.25, "wrist_translation_residual": 0.0},
                        None, tmp_path / "ft2", resume=False)
     tuned2 = build(cfg, tmp_path / "ft2", None)
-    assert tuned2.env.cfg.contract.action.translation_residual == 0.0 and tuned2.model.wrist_is_action
+    assert tuned2.env.cfg.contract.action.translation_factors == (0.0, 0.0, 0.0) and tuned2.model.wrist_is_action
     tuned2.env.close()
     # so is the guidance's stop gap (how the wrist command is composed, not what a tensor means)
     cfg = _load_config({"init_from": str(tmp_path / "src"), "guidance_stop_gap": 0.05}, None, tmp_path / "ft3",

@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
                                    ControlContract, EpisodeProtocol, ObservationLayout, StartPose,
-                                   WristGuidance)
+                                   WristGuidance, check_translation_factors)
 from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward, RewardWeights
 
 ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
@@ -90,9 +90,10 @@ class TrainConfig(BaseModel):
                                   "action.wrist_residual; 0: the wrist follows the guidance and the lift alone)")
     finger_residual: float = Field(1.0, ge=0, le=1, description="factor on the policy's finger actions before the "
                                    "closing prior is added (contract action.finger_residual)")
-    wrist_translation_residual: float | None = Field(None, ge=0, le=1, description="factor on the policy's wrist "
-                                                     "translation actions alone (contract action.wrist_translation_residual; "
-                                                     "None = wrist_residual)")
+    wrist_translation_residual: float | tuple[float, float, float] | None = Field(
+        None, description="factor in [0, 1] on the policy's wrist translation actions alone, one for all three palm "
+                          "axes or one per axis (f, l, n) (contract action.wrist_translation_residual; None = "
+                          "wrist_residual)")
     residual_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −mean a² over the "
                                    "policy's active action dims (its residual on the prior; 0 = off)")
     displace_weight: float = Field(0.0, ge=0, le=1e3, description="graspxl reward: weight of −(the object's "
@@ -123,6 +124,11 @@ class TrainConfig(BaseModel):
         if abs(v / control_hz - round(v / control_hz)) > 1e-9:
             raise ValueError(f"must be a whole multiple of the {control_hz:g} Hz control rate (e.g. 200 or 400)")
         return v
+
+    @field_validator("wrist_translation_residual")
+    @classmethod
+    def _translation_factors(cls, v):
+        return check_translation_factors(v)
 
     @model_validator(mode="after")
     def _one_warm_start(self) -> "TrainConfig":

@@ -165,6 +165,14 @@ class ClosingPrior(_Frozen):
                                       "per step at 0.002 / g m; None = off")
 
 
+def check_translation_factors(v: float | tuple[float, ...] | None):
+    """``v`` unchanged if every wrist translation factor in it lies in [0, 1], else ValueError."""
+    factors = (v,) if isinstance(v, (int, float)) else (v or ())
+    if any(not 0.0 <= f <= 1.0 for f in factors):
+        raise ValueError(f"each translation factor must lie in [0, 1], got {v}")
+    return v
+
+
 class ActionLayout(_Frozen):
     wrist_dim: int = Field(6, gt=0)
     n_prim: int = Field(3, gt=0, description="primitives per node: FLEX, ABD, ROT")
@@ -183,35 +191,46 @@ class ActionLayout(_Frozen):
                                   "and the lift alone)")
     finger_residual: float = Field(1.0, ge=0, le=1, description="the policy's finger actions are multiplied by this "
                                    "before the closing prior is added (< 1 bounds how far a residual can undo it)")
-    wrist_translation_residual: float | None = Field(
-        None, ge=0, le=1, description="factor on the policy's wrist translation actions alone (the first three wrist "
-                                      "dims, palm f/l/n); the rotation dims keep wrist_residual. None = wrist_residual")
+    wrist_translation_residual: float | tuple[float, float, float] | None = Field(
+        None, description="factor on the policy's wrist translation actions alone (the first three wrist dims, palm "
+                          "f/l/n), in [0, 1]: one for all three axes or one per axis (f, l, n); the rotation dims "
+                          "keep wrist_residual. None = wrist_residual")
+
+    @field_validator("wrist_translation_residual")
+    @classmethod
+    def _translation_in_unit_range(cls, v):
+        return check_translation_factors(v)
 
     def dim(self, n_nodes: int) -> int:
         return self.wrist_dim + self.n_prim * n_nodes
 
     @property
-    def translation_residual(self) -> float:
-        """The factor on the wrist's translation actions (``wrist_translation_residual``, else ``wrist_residual``)."""
-        return self.wrist_residual if self.wrist_translation_residual is None else self.wrist_translation_residual
+    def translation_factors(self) -> tuple[float, float, float]:
+        """The factors on the wrist's translation actions along the palm's (f, l, n) axes
+        (``wrist_translation_residual``, else ``wrist_residual`` on all three)."""
+        v = self.wrist_translation_residual
+        if v is None:
+            v = self.wrist_residual
+        return (float(v),) * 3 if isinstance(v, (int, float)) else tuple(float(f) for f in v)
 
     @property
     def scales_residual(self) -> bool:
         """Whether :meth:`residual_gains` differ from 1 anywhere."""
-        return self.wrist_residual != 1.0 or self.translation_residual != 1.0 or self.finger_residual != 1.0
+        return (self.wrist_residual != 1.0 or any(f != 1.0 for f in self.translation_factors)
+                or self.finger_residual != 1.0)
 
     @property
     def wrist_is_action(self) -> bool:
         """Whether the wrist dims are actions (sampled and scored): always, unless ``mask_actions`` and a
         ``wrist_residual`` of 0 (translation included) leave them without effect."""
-        return not (self.mask_actions and self.wrist_residual == 0 and self.translation_residual == 0)
+        return not (self.mask_actions and self.wrist_residual == 0 and not any(self.translation_factors))
 
     def residual_gains(self, n_nodes: int) -> np.ndarray:
         """(wrist_dim + n_prim·N,) the factors on the policy's own normalized action (all 1 by default): the
-        wrist's translation dims (the first three) × :attr:`translation_residual`, its rotation dims ×
+        wrist's translation dims (the first three, palm f/l/n) × :attr:`translation_factors`, its rotation dims ×
         ``wrist_residual``, the finger dims × ``finger_residual``."""
         wrist = np.full(self.wrist_dim, self.wrist_residual)
-        wrist[:3] = self.translation_residual
+        wrist[:3] = self.translation_factors
         return np.concatenate([wrist, np.full(self.n_prim * n_nodes, self.finger_residual)])
 
     def scales(self, n_nodes: int) -> np.ndarray:
