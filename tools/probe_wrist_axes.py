@@ -2,8 +2,7 @@
 env on the same start states with its wrist translation actions (action dims 0, 1, 2 = Δp along the palm's f, l, n
 axes) zeroed on a chosen set of axes at test time, which is what a per-axis `wrist_translation_residual` of 0 would
 do; the rotation residual and the fingers are unchanged. Modes: as trained, l off, n off, f and n off (l kept), all off
-(= `tools/probe_wrist_translation_off.py`'s "translation off"). Per hand and mode: the success rate, per object, and
-the failure classes.
+(the whole translation residual). Per hand and mode: the success rate, per object, and the failure classes.
 
 `DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_wrist_axes.py CHECKPOINT HANDS OBJECTS TRIALS`"""
 import json
