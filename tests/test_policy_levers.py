@@ -483,3 +483,33 @@ def test_the_env_rewards_the_objects_displacement_from_where_it_settled():
     moved = np.linalg.norm(env.buf["xpos"][0, env.N] - env.p0[0])
     assert moved == pytest.approx(0.06, abs=0.005)
     assert info["reward_terms"]["displace"][0] == pytest.approx(-moved / cfg.graspxl.push_limit)
+
+
+def test_target_noise_shifts_the_observed_target_horizontally_per_episode_in_training_only():
+    """target_noise: the same start state as without it, an observed grasp target (and so the guidance's aim)
+    displaced by a horizontal world offset of the order of the std, another offset in another episode, the guidance error
+    shifted by the same vector; dgz eval's env builder turns it off."""
+    from dgz_cli.sim.evaluate import make_env
+
+    markov = ControlContract(observation=MARKOV)
+    clean, noisy = _env(EnvConfig(contract=markov)), _env(EnvConfig(contract=markov, target_noise=0.03))
+    lay = markov.observation
+    shifts = []
+    for episode in range(3):
+        o_clean, o_noisy = (env.reset(seed=4 + episode) for env in (clean, noisy))
+        s_clean, s_noisy = clean.state(), noisy.state()
+        np.testing.assert_array_equal(s_clean["palm_pos"], s_noisy["palm_pos"])  # the start state is untouched
+        rot = s_clean["palm_rot"][0]
+        d_target = (o_noisy["global"][0, lay.global_col("target")] - o_clean["global"][0, lay.global_col("target")])
+        d_guide = (o_noisy["global"][0, lay.global_col("guide")] - o_clean["global"][0, lay.global_col("guide")])
+        np.testing.assert_allclose(d_target, d_guide, atol=1e-6)  # float32 observations
+        world = rot @ (d_target * lay.target_scale)  # palm frame → world
+        assert abs(world[2]) < 1e-5 and 0.001 < np.linalg.norm(world) < 0.15
+        shifts.append(world[:2])
+    assert np.linalg.norm(shifts[0] - shifts[1]) > 1e-3 and np.linalg.norm(shifts[1] - shifts[2]) > 1e-3
+    for env in (clean, noisy):
+        env.close()
+    evaluated = make_env([(TRI, resolve_objects("box")[0])], EnvConfig(contract=markov, target_noise=0.03), seed=4,
+                         threads=1)
+    assert evaluated.cfg.target_noise == 0.0 and not evaluated.target_shift.any()
+    evaluated.close()

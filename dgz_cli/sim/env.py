@@ -62,6 +62,7 @@ class GraspEnv:
         self._alpha = np.zeros((self.B, self.N, self.cfg.contract.action.n_prim))
         self._residual_sq = np.zeros(self.B)  # the last step's mean squared policy action (r_residual)
         self.wrist_target = np.zeros((self.B, 6))
+        self.target_shift = np.zeros((self.B, 3))  # world m, per episode (EnvConfig.target_noise)
         self.prev_palm = np.zeros((self.B, 3))
         self.prev_rot = np.tile(np.eye(3), (self.B, 1, 1))
         self.ok_hold = np.ones(self.B, bool)
@@ -180,6 +181,8 @@ class GraspEnv:
         self.episodes[b] += 1
         s = self.slots[b]
         s.reset(rng)
+        if self.cfg.target_noise > 0:  # drawn after the slot's own draws, so the start state is the same either way
+            self.target_shift[b, :2] = rng.normal(0.0, self.cfg.target_noise, 2)
         self.targets[b] = 0.0
         self.targets[b, :s.n_joints] = s.idx.start_q
         self.wrist_target[b] = s.wrist_q0
@@ -366,7 +369,7 @@ class GraspEnv:
         w_w = observe.rotation_delta(self.prev_rot, palm_rot) / dt
         self.prev_palm, self.prev_rot = palm_pos, palm_rot
         # the cloud's centroid: R · Σp / P (the same up to rounding as averaging the rotated points)
-        center = obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1]
+        center = obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1] + self.target_shift
         self._palm_velocity = v_w
         target = observe.to_frame(center - palm_pos, palm_rot)
         extra_g, extra_n = {}, {}

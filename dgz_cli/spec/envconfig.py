@@ -84,6 +84,11 @@ class EnvConfig(_Frozen):
     clearance_depth: float = Field(0.0, ge=0, description="m: with roll 'clear', how far below the table the palm "
                                    "and forearm may reach at the guidance target and still count as clearing it "
                                    "(the hand stops on the object before the target)")
+    target_noise: float = Field(0.0, ge=0, le=0.1, description="training only (issue 11, a domain randomisation): "
+                                "m, std of a Gaussian offset drawn per episode on each horizontal world axis and "
+                                "added to the grasp target (the observed cloud centroid the guidance steers to), so "
+                                "a fixed wrist offset stops paying and the object's surface has to be read; rewards "
+                                "and success use the true state; dgz eval and deploy turn it off")
     early_stop: bool = Field(False, description="training only (issue 11, throughput): end an episode as a true "
                              "terminal state once it can no longer succeed — nothing touched by the end of the grasp "
                              "phase, or the object not up when the hold starts or dropped during it; dgz eval and "
