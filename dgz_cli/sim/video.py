@@ -80,9 +80,9 @@ def rollouts(pairs: list, make_policy: Callable, episodes: int, cfg, seed: int =
     """``episodes`` episodes of every (hand, object) pair in ``pairs``, rendered at WIDTH×HEIGHT."""
     import mujoco
 
-    from dgz_cli.sim.env import GraspEnv
+    from dgz_cli.sim.evaluate import make_env
 
-    env = GraspEnv(pairs, cfg, seed=seed, asset_root=asset_root, threads=1)
+    env = make_env(pairs, cfg, seed=seed, asset_root=asset_root, threads=1)  # eval's protocol, training-only options off
     try:
         policy = make_policy(env)
         obs = env.reset(seed)
