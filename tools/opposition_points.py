@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from dgz_cli.rl.checkpoint import read_meta
-from dgz_cli.runtime.kinematics import HandKinematics
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.io import load_spec
+from dgz_cli.spec.kinematics import HandKinematics
+from probe_common import open_hand_tips
 
 HANDS = "allegro shadow schunk_svh ability leap inspire revo2 barrett".split()
 
@@ -28,11 +29,10 @@ def main(checkpoint: str) -> None:
     print("# hand | grasp point (all nodes) | thumb tip | other fingertips, mean | thumb-to-fingers midpoint")
     for hand in HANDS:
         spec = load_spec(resolve_spec(hand))
-        anchors = HandKinematics.for_spec(spec).anchors_palm(start.pose(spec)) * 1000.0
-        tips = [i for i, n in enumerate(spec.nodes) if n.type == "fingertip"]
-        thumb = anchors[[i for i in tips if spec.nodes[i].finger == "thumb"]].mean(0)
-        others = anchors[[i for i in tips if spec.nodes[i].finger != "thumb"]].mean(0)
-        cells = [anchors.mean(0), thumb, others, (thumb + others) / 2]
+        q = start.pose(spec)
+        grasp_point = HandKinematics.for_spec(spec).anchors_palm(q).mean(0)
+        thumb, others = open_hand_tips(spec, q)
+        cells = [c * 1000.0 for c in (grasp_point, thumb, others, (thumb + others) / 2)]
         print(hand, *(np.round(c).astype(int).tolist() for c in cells), sep=" | ")
 
 

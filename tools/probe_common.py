@@ -25,11 +25,11 @@ NINE = ("032_knife,030_fork,031_spoon,040_large_marker,037_scissors,071_nine_hol
         "028_skillet_lid,048_hammer")
 
 
-def open_hand_tips(spec) -> tuple[np.ndarray, np.ndarray]:
-    """(3,), (3,) m: the thumb's fingertip and the mean of the other fingertips on the flat open hand, palm frame
-    (where the guidance's grasp point is measured)."""
+def open_hand_tips(spec, q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(3,), (3,) m: the thumb's fingertip and the mean of the other fingertips, palm frame (where the guidance's
+    grasp point is measured), at joint positions ``q`` (L,) (None: the flat open hand, the spec's rest pose)."""
     kin = HandKinematics.for_spec(spec)
-    anchors = kin.anchors_palm(kin.rest)  # (N, 3)
+    anchors = kin.anchors_palm(kin.rest if q is None else q)  # (N, 3)
     tip = [n.type == "fingertip" for n in spec.nodes]
     thumb = anchors[[t and n.finger == "thumb" for t, n in zip(tip, spec.nodes)]].mean(0)
     return thumb, anchors[[t and n.finger != "thumb" for t, n in zip(tip, spec.nodes)]].mean(0)

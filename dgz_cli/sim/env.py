@@ -131,8 +131,18 @@ class GraspEnv:
         self._active_dims = np.concatenate([np.full((B, wrist_dim), wrist_acts), (
             (self.mask > 0) & self.node_valid[..., None]).reshape(B, -1)], axis=1).astype(np.float64)
         self.cloud_pre = observe.cloud_terms(self.cloud)  # constants of observe.nearest_surface
-        self.cloud_sum = self.cloud.sum(axis=1)  # (B, 3): the object centre is obj_pos + R · cloud_sum / P
+        self.cloud_sum = self.cloud.sum(axis=1)  # (B, 3), for cloud_centroid
         self.static_nodes = observe.static_features(self.finger, self.node_type, self.node_valid)
+
+    def cloud_centroid(self, obj_pos: np.ndarray, obj_rot: np.ndarray) -> np.ndarray:
+        """(B, 3) world: the object cloud's centroid for object poses ``obj_pos`` (B, 3), ``obj_rot`` (B, 3, 3):
+        R · Σp / P, the same up to rounding as averaging the rotated points."""
+        return obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1]
+
+    def grasp_target(self, obj_pos: np.ndarray, obj_rot: np.ndarray) -> np.ndarray:
+        """(B, 3) world: the grasp target the observation reports and the guidance steers to, the cloud's
+        centroid plus this episode's ``target_shift`` (0 unless ``target_noise``)."""
+        return self.cloud_centroid(obj_pos, obj_rot) + self.target_shift
 
     def state(self) -> dict[str, np.ndarray]:
         """The raw quantities the observation is built from, batched (copies; for tests and debugging):
@@ -368,8 +378,7 @@ class GraspEnv:
         v_w = (palm_pos - self.prev_palm) / dt
         w_w = observe.rotation_delta(self.prev_rot, palm_rot) / dt
         self.prev_palm, self.prev_rot = palm_pos, palm_rot
-        # the cloud's centroid: R · Σp / P (the same up to rounding as averaging the rotated points)
-        center = obj_pos + np.einsum("bij,bj->bi", obj_rot, self.cloud_sum) / self.cloud.shape[1] + self.target_shift
+        center = self.grasp_target(obj_pos, obj_rot)
         self._palm_velocity = v_w
         target = observe.to_frame(center - palm_pos, palm_rot)
         extra_g, extra_n = {}, {}

@@ -109,7 +109,7 @@ def palm_object_distance(env: GraspEnv) -> tuple[np.ndarray, np.ndarray]:
     st = env.state()
     palm = st["palm_pos"]
     d = observe.nearest_surface(palm[:, None], st["obj_pos"], st["obj_rot"], env.cloud, env.cloud_pre)[:, 0]
-    center = st["obj_pos"] + np.einsum("bij,bj->bi", st["obj_rot"], env.cloud_sum) / env.cloud.shape[1]
+    center = env.cloud_centroid(st["obj_pos"], st["obj_rot"])
     return np.linalg.norm(d, axis=-1), np.linalg.norm(center - palm, axis=-1)
 
 

@@ -111,8 +111,7 @@ class HardwareViewEnv(GraspEnv):
             d = observe.nearest_surface(nodes_w, self._held_pos, self._held_rot, self.cloud, self.cloud_pre)
             d *= self.node_valid[..., None]
             node_blocks["d"] = observe.to_frame(d, palm_rot)
-            center = (self._held_pos + np.einsum("bij,bj->bi", self._held_rot, self.cloud_sum) / self.cloud.shape[1]
-                      + self.target_shift)
+            center = self.grasp_target(self._held_pos, self._held_rot)
             target = observe.to_frame(center - palm_pos, palm_rot)
             glob_blocks.update(target=target, v_obj=np.zeros((B, 3)), w_obj=np.zeros((B, 3)))
             if lay.has("guide"):
