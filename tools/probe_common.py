@@ -1,6 +1,7 @@
 """What the probes in tools/ share: the ladder's 10 objects, E6's Markov layout, episodes on (object, slot) pairs
 through `dgz eval`'s own loop and summary (`dgz_cli.sim.evaluate.run_episodes`, `summarize`), either a fixed
-action rule on a zero residual or the scripted grasp, and the per-hand command line `HANDS [VARIANTS]`."""
+action rule on a zero residual or the scripted grasp, or a checkpoint in its own env, and the per-hand command line
+`HANDS [VARIANTS]`."""
 import json
 import sys
 from collections.abc import Callable
@@ -75,6 +76,18 @@ def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarr
     records = run_episodes(pairs, policy_for, trials=trials, cfg=cfg)
     (hand,) = summarize(records, contract.episode.lift_height, contract.episode.success_fraction).values()
     return {"success": round(hand["success_rate"], 3), **hand["failures"]}
+
+
+def checkpoint_summary(policy, hand: str, objects: str, trials: int,
+                       make_policy: Callable[[GraspEnv], object] | None = None) -> dict:
+    """`dgz eval`'s summary of one hand (success_rate, failures, objects, ...) for ``trials`` episodes on each of
+    ``objects``, in the env the LoadedPolicy ``policy`` records (eval's protocol and start states), acting with
+    ``make_policy(env)`` (default: the policy itself)."""
+    spec = load_spec(resolve_spec(hand))
+    records = run_episodes([(spec, o) for o in resolve_objects(objects)], make_policy or (lambda env: policy),
+                           trials, policy.meta.env)
+    (summary,) = summarize(records).values()
+    return summary
 
 
 def zero(env: GraspEnv) -> np.ndarray:

@@ -8,18 +8,16 @@ classes.
 import json
 import sys
 
+from probe_common import checkpoint_summary
+
 from dgz_cli.rl.checkpoint import LoadedPolicy
-from dgz_cli.sim.evaluate import run_episodes, summarize
-from dgz_cli.sim.objects import resolve_objects
-from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.io import load_spec
 
 
 def main() -> None:
     if len(sys.argv) != 6:
         sys.exit(__doc__.splitlines()[-1])
     policy = LoadedPolicy(sys.argv[1])
-    objects, trials, noise = resolve_objects(sys.argv[3]), int(sys.argv[4]), float(sys.argv[5])
+    objects, trials, noise = sys.argv[3], int(sys.argv[4]), float(sys.argv[5])
 
     def noisy(env):
         # run_episodes builds its env through make_env (noise off) and resets it after this call
@@ -28,9 +26,7 @@ def main() -> None:
 
     out = {}
     for hand in sys.argv[2].split(","):
-        spec = load_spec(resolve_spec(hand))
-        records = run_episodes([(spec, o) for o in objects], noisy, trials, policy.meta.env)
-        (summary,) = summarize(records).values()
+        summary = checkpoint_summary(policy, hand, objects, trials, noisy)
         out[hand] = dict(success=round(summary["success_rate"], 3), failures=summary["failures"])
         print(hand, json.dumps(out[hand]), flush=True)
     print(json.dumps(out))

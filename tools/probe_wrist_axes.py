@@ -9,12 +9,9 @@ import json
 import sys
 
 import numpy as np
+from probe_common import checkpoint_summary
 
 from dgz_cli.rl.checkpoint import LoadedPolicy
-from dgz_cli.sim.evaluate import run_episodes, summarize
-from dgz_cli.sim.objects import resolve_objects
-from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.io import load_spec
 
 MODES = {"as trained": (), "l off": (1,), "n off": (2,), "f, n off": (0, 2), "all off": (0, 1, 2)}
 
@@ -38,15 +35,12 @@ def main() -> None:
     if len(sys.argv) != 5:
         sys.exit(__doc__.splitlines()[-1])
     policy = LoadedPolicy(sys.argv[1])
-    objects, trials = resolve_objects(sys.argv[3]), int(sys.argv[4])
+    objects, trials = sys.argv[3], int(sys.argv[4])
     out = {}
     for hand in sys.argv[2].split(","):
-        spec = load_spec(resolve_spec(hand))
         row = {}
         for mode, axes in MODES.items():
-            records = run_episodes([(spec, o) for o in objects], lambda env: AxesOff(policy, axes), trials,
-                                   policy.meta.env)
-            (summary,) = summarize(records).values()
+            summary = checkpoint_summary(policy, hand, objects, trials, lambda env: AxesOff(policy, axes))
             row[mode] = dict(success=round(summary["success_rate"], 3), failures=summary["failures"],
                              objects={k: round(o["success_rate"], 2) for k, o in summary["objects"].items()})
         out[hand] = row
