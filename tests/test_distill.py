@@ -227,5 +227,5 @@ def test_the_shipped_student_is_deploys_default():
     default = inspect.signature(deploy).parameters["policy"].default.default
     meta = read_meta(resolve_checkpoint(default))
     assert default == "dgz-cpu-student" and meta.format == 3 and meta.privileged_inputs == ()
-    assert meta.student.teacher_path == "dgz-cpu-ycb45"
+    assert meta.student.teacher_path == "dgz-cpu-variants"
     assert meta.contract.start.thumb_open == 0.5  # deploy ramps to the teacher's start pose
