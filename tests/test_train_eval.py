@@ -206,10 +206,17 @@ def test_train_bad_options(tmp_path, args, message):
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize("name", ["dgz-cpu-first", "dgz-cpu-warmstart", "dgz-cpu-guided", "dgz-cpu-residual",
-                                  "dgz-cpu-residual-nocap", "dgz-cpu-thumb-open", "dgz-cpu-ycb45",
-                                  "dgz-cpu-variants"])
-def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
+_REAL_TRAINING_HANDS = {"allegro", "shadow", "schunk_svh", "ability"}
+# dgz-cpu-variants also trained on one generated variant of each real hand (`dgz hands generate --variants-of`)
+_E19_VARIANTS = {"allegro_v19_0000", "shadow_v20_0000", "schunk_svh_v21_0000", "ability_v22_0000"}
+
+
+@pytest.mark.parametrize("name, training_hands", [
+    *((n, _REAL_TRAINING_HANDS) for n in ("dgz-cpu-first", "dgz-cpu-warmstart", "dgz-cpu-guided", "dgz-cpu-residual",
+                                          "dgz-cpu-residual-nocap", "dgz-cpu-thumb-open", "dgz-cpu-ycb45")),
+    ("dgz-cpu-variants", _REAL_TRAINING_HANDS | _E19_VARIANTS),
+])
+def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name, training_hands):
     from conftest import REPO
     from dgz_cli.policy.graph import to_tensors
     from dgz_cli.sim.env import GraspEnv
@@ -220,10 +227,7 @@ def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name):
     path = REPO / "policies" / name
     loaded = LoadedPolicy(path)  # the first two are format 1, migrated on load
     meta = loaded.meta
-    real = {"allegro", "shadow", "schunk_svh", "ability"}
-    # dgz-cpu-variants also trained on one generated variant of each real hand (`dgz hands generate --variants-of`)
-    variants = {"allegro_v19_0000", "shadow_v20_0000", "schunk_svh_v21_0000", "ability_v22_0000"}
-    assert set(meta.training_hands) == (real | variants if name == "dgz-cpu-variants" else real)
+    assert set(meta.training_hands) == training_hands
     assert meta.contract.action.finger_scale == 0.015 and meta.contract.episode.grasp_steps == 120
     env = GraspEnv([(load_spec(resolve_spec("dgz_tri")), resolve_objects("box")[0])], meta.env, threads=1)
     mean = loaded.act(env.reset(0))
