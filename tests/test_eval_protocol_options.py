@@ -470,7 +470,31 @@ def test_eval_roll_is_a_start_state_option_for_checkpoints_too(tmp_path):
     assert rolls == {(): "narrow", ("--roll", "clear"): "clear"}
 
 
+def test_eval_settle_is_a_start_state_option_recorded_in_the_protocol(tmp_path):
+    """`--settle` (issue 12: the held first frame must show an object at rest) sets how long the dropped object
+    settles before the first frame, for checkpoints too: recorded, and a box dropped in a random orientation
+    starts elsewhere after 2 s than after the default 0.3 s, so the trajectories differ."""
+    rows, settles = {}, {}
+    for extra in ((), ("--settle", "2")):
+        js, csv = tmp_path / f"{len(extra)}.json", tmp_path / f"{len(extra)}.csv"
+        res = _dgz("eval", "--hand", "dgz_tri", "--objects", "box", "--trials", "2", *extra, "--json", str(js),
+                   "--csv", str(csv), cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        settles[extra] = json.loads(js.read_text())["protocol"]["settle_s"]
+        rows[extra] = csv.read_text().splitlines()[1:]
+    assert settles == {(): 0.3, ("--settle", "2"): 2.0}
+    assert rows[()] != rows[("--settle", "2")]
+    js = tmp_path / "ckpt.json"
+    res = _dgz("eval", "--policy", "dgz-cpu-thumb-open", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1",
+               "--settle", "1.5", "--json", str(js), cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(js.read_text())["protocol"]["settle_s"] == 1.5
+
+
 @pytest.mark.parametrize("args,message", [
+    (("--settle", "-1"), "--settle"),
+    (("--settle", "nan"), "--settle"),
+    (("--settle", "11"), "--settle"),
     (("--feature-scale", "0"), "--feature-scale"),
     (("--feature-scale", "nan"), "--feature-scale"),
     (("--approach-cone", "-0.1"), "--approach-cone"),

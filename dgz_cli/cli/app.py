@@ -261,6 +261,9 @@ def evaluate(
                                                   "0 to π/2) of the approach direction from vertical; 0 = straight "
                                                   "above the object, the paper's Barrett protocol (default: the "
                                                   "checkpoint's own; 0.5 for scripted)"),
+    settle: Optional[float] = typer.Option(None, "--settle", help="start state: seconds (0 to 10) the dropped "
+                                           "object settles on the table before the episode's first frame "
+                                           "(default: the checkpoint's own; 0.3 for scripted)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Success rate per hand and object under the protocol (lift, hold), with both cores; the closing onset
@@ -282,12 +285,15 @@ def evaluate(
     if approach_cone is not None and not 0.0 <= approach_cone <= math.pi / 2:
         raise DgzError(f"--approach-cone {approach_cone}: must be in [0, π/2] rad",
                        "0 approaches from straight above; the default cone is 0.5")
+    if settle is not None and not (math.isfinite(settle) and 0.0 <= settle <= 10.0):
+        raise DgzError(f"--settle {settle}: must be in [0, 10] s", "e.g. --settle 2 (the default is 0.3)")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, guidance_stop_gap=guidance_stop_gap,
                                       roll=roll, video=video,
                                       video_episodes=video_episodes, perturb=perturb, feature_scale=feature_scale,
-                                      approach_cone=approach_cone, physics_hz=physics_hz, thumb_open=thumb_open))
+                                      approach_cone=approach_cone, physics_hz=physics_hz, thumb_open=thumb_open,
+                                      settle=settle))
 
 
 @assets_app.command("fetch")
