@@ -79,13 +79,14 @@ def probe(spec, contract: ControlContract, action: Callable[[GraspEnv], np.ndarr
 
 
 def checkpoint_summary(policy, hand: str, objects: str, trials: int,
-                       make_policy: Callable[[GraspEnv], object] | None = None) -> dict:
+                       make_policy: Callable[[GraspEnv], object] | None = None, cfg: EnvConfig | None = None,
+                       view=None) -> dict:
     """`dgz eval`'s summary of one hand (success_rate, failures, objects, ...) for ``trials`` episodes on each of
-    ``objects``, in the env the LoadedPolicy ``policy`` records (eval's protocol and start states), acting with
-    ``make_policy(env)`` (default: the policy itself)."""
+    ``objects``, in the env the LoadedPolicy ``policy`` records (eval's protocol and start states) or ``cfg``,
+    under the HardwareView ``view`` (None: none), acting with ``make_policy(env)`` (default: the policy itself)."""
     spec = load_spec(resolve_spec(hand))
     records = run_episodes([(spec, o) for o in resolve_objects(objects)], make_policy or (lambda env: policy),
-                           trials, policy.meta.env)
+                           trials, cfg or policy.meta.env, view=view)
     (summary,) = summarize(records).values()
     return summary
 

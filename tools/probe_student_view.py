@@ -22,27 +22,23 @@ import json
 import sys
 
 import numpy as np
+from probe_common import checkpoint_summary
 
 from dgz_cli.rl.checkpoint import LoadedPolicy
-from dgz_cli.sim.evaluate import run_episodes, summarize
-from dgz_cli.sim.objects import resolve_objects
-from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.hardware_view import HardwareView
-from dgz_cli.spec.io import load_spec
+from dgz_cli.spec.hardware_view import HARDWARE, HardwareView
 
-NOISE = 0.01
 HELD = HardwareView(held_cloud=True)
 OBJECT_NODE, OBJECT_GLOBAL = ("d",), ("target", "guide", "v_obj", "w_obj")
 # view name → (HardwareView, observation blocks put back to the live ones after the view: node, global;
 #              the first control step from which they are put back)
 VIEWS = {
     "none": (None, (), (), 0),
-    "noise": (HardwareView(joint_noise=NOISE), (), (), 0),
+    "noise": (HardwareView(joint_noise=HARDWARE.joint_noise), (), (), 0),
     "held": (HELD, (), (), 0),
-    "hw": (HardwareView(joint_noise=NOISE, held_cloud=True), (), (), 0),
-    "held_target": (HELD, ("d",), ("v_obj", "w_obj"), 0),
+    "hw": (HARDWARE, (), (), 0),
+    "held_target": (HELD, OBJECT_NODE, ("v_obj", "w_obj"), 0),
     "held_surface": (HELD, (), ("target", "guide"), 0),
-    "hw_grasp": (HardwareView(joint_noise=NOISE, held_cloud=True), OBJECT_NODE, OBJECT_GLOBAL, None),
+    "hw_grasp": (HARDWARE, OBJECT_NODE, OBJECT_GLOBAL, None),
 }
 
 
@@ -82,8 +78,6 @@ def main() -> None:
         sys.exit(f"unknown view(s) {unknown}; choose from {','.join(VIEWS)}")
     out: dict = {}
     for hand in sys.argv[2].split(","):
-        spec = load_spec(resolve_spec(hand))
-        pairs = [(spec, o) for o in resolve_objects(objects)]
         for name in names:
             view, node_live, global_live, from_step = VIEWS[name]
 
@@ -93,8 +87,7 @@ def main() -> None:
                     restore_live(env, node_live, global_live, grasp_steps if from_step is None else from_step)
                 return policy
 
-            records = run_episodes(pairs, make_policy, trials, cfg, view=view)
-            (summary,) = summarize(records).values()
+            summary = checkpoint_summary(policy, hand, objects, trials, make_policy, cfg, view)
             out.setdefault(hand, {})[name] = dict(success=round(summary["success_rate"], 3),
                                                   failures=summary["failures"])
             print(hand, name, json.dumps(out[hand][name]), flush=True)
