@@ -438,6 +438,21 @@ def test_throughput_levers_reach_the_env_config():
         TrainConfig(physics_hz=250)
 
 
+def test_training_settle_reaches_the_env_config():
+    """settle_s (issue 11: start episodes from objects at rest) is a run option: the default is the env's 0.3 s,
+    so older checkpoints (which lack the field) keep their start states, and it is range-checked."""
+    from pydantic import ValidationError
+
+    from dgz_cli.rl.config import TrainConfig
+    from dgz_cli.rl.config import env_config
+
+    assert env_config(TrainConfig()).settle_s == EnvConfig().settle_s == 0.3
+    assert env_config(TrainConfig(settle_s=2.0)).settle_s == 2.0
+    for bad in (-0.1, 10.5):
+        with pytest.raises(ValidationError, match="settle_s"):
+            TrainConfig(settle_s=bad)
+
+
 def test_pick_roll_by_hand():
     widths = np.array([0.05, 0.08, 0.06, 0.09])
     assert pick_roll(widths) == 0                                               # narrow: the narrowest

@@ -108,6 +108,8 @@ class TrainConfig(BaseModel):
     target_noise: float = Field(0.0, ge=0, le=0.1, description="m: std of a per-episode horizontal offset on the "
                                 "grasp target the guidance steers to and the policy observes (training only; env "
                                 "target_noise; 0 = off)")
+    settle_s: float = Field(0.3, ge=0, le=10, description="s the object settles on the table before each episode's "
+                            "first frame (env settle_s; dgz eval --settle sets it for evaluation)")
     physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "
                               "200 halves the physics cost)")
     thumb_open: float = Field(0.0, ge=0, le=1, description="start pose: the thumb's opening joints this fraction of "
@@ -160,4 +162,4 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
                      graspxl=GraspXLReward(residual=cfg.residual_weight, displace=cfg.displace_weight),
-                     roll=cfg.roll, early_stop=cfg.early_stop, target_noise=cfg.target_noise)
+                     roll=cfg.roll, early_stop=cfg.early_stop, target_noise=cfg.target_noise, settle_s=cfg.settle_s)
