@@ -179,6 +179,9 @@ def distill(
     held_cloud: Optional[bool] = typer.Option(None, "--held-cloud/--live-cloud", help="the student sees the object "
                                               "cloud of the first frame, held, its centroid the target (default), or "
                                               "the simulator's live cloud"),
+    settle: Optional[float] = typer.Option(None, "--settle", help="s the object settles on the table before each "
+                                           "episode's first frame (default: the teacher's env, 0.3 s unless it was "
+                                           "trained with settle_s)"),
     checkpoint_every: Optional[int] = typer.Option(None, "--checkpoint-every", help=_distill_default("checkpoint_every")),
     seed: Optional[int] = typer.Option(None, "--seed", help=_distill_default("seed")),
     resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint "
@@ -191,7 +194,7 @@ def distill(
     given = dict(teacher=teacher, hands=None if hands is None else tuple(h for h in hands.split(",") if h),
                  objects=objects, repeat=repeat, iterations=iterations, steps_per_env=steps, epochs=epochs,
                  learning_rate=learning_rate, finetune_iterations=finetune_iterations, joint_noise=joint_noise,
-                 held_cloud=held_cloud, checkpoint_every=checkpoint_every, seed=seed)
+                 held_cloud=held_cloud, checkpoint_every=checkpoint_every, seed=seed, settle_s=settle)
     raise typer.Exit(distill_cmd.run({k: v for k, v in given.items() if v is not None}, out_dir, resume, asset_root,
                                      out))
 

@@ -42,7 +42,8 @@ def _load_config(given: dict, out: Path, resume: bool):
     except ValidationError as exc:
         e = exc.errors()[0]
         name = e["loc"][-1] if e["loc"] and e["loc"][0] == "view" else ".".join(map(str, e["loc"]))
-        raise DgzError(f"--{str(name).replace('_', '-')}: {e['msg']}", "see `dgz distill --help` and docs/distill.md") from None
+        option = {"settle_s": "settle", "steps_per_env": "steps"}.get(str(name), str(name)).replace("_", "-")
+        raise DgzError(f"--{option}: {e['msg']}", "see `dgz distill --help` and docs/distill.md") from None
 
 
 def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None):
@@ -71,7 +72,8 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     objs = resolve_objects(cfg.objects, asset_root)
     pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
     tmeta = teacher.meta
-    env_cfg = tmeta.env.model_copy(update=dict(contract=student_contract(tmeta.contract)))
+    env_cfg = tmeta.env.model_copy(update=dict(contract=student_contract(tmeta.contract))
+                                   | ({} if cfg.settle_s is None else dict(settle_s=cfg.settle_s)))
     env = HardwareViewEnv(pairs, env_cfg, cfg.view, teacher_layout=tmeta.contract.observation, seed=cfg.seed,
                           asset_root=asset_root, threads=cfg.threads, use_pen=tmeta.train.ablation != "no_mask")
     try:

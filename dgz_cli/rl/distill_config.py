@@ -43,6 +43,8 @@ class DistillConfig(BaseModel):
     threads: int = Field(2, ge=1, le=256, description="physics worker threads")
     torch_threads: int = Field(1, ge=1, le=256, description="torch threads for the fit (rollouts use 1)")
     view: HardwareView = Field(HARDWARE, description="what hardware gives, imposed on the student in simulation")
+    settle_s: float | None = Field(None, ge=0, le=10, description="s the object settles before each episode's first "
+                                   "frame (None: the teacher's env)")
     student: StudentConfig = StudentConfig()
 
 
