@@ -23,12 +23,6 @@ TEACHER = "dgz-cpu-warmstart"
 TRI = load_spec(resolve_spec("dgz_tri"))
 
 
-def resolve_checkpoint_dir(name: str):
-    from dgz_cli.rl.checkpoint import resolve_checkpoint
-    from dgz_cli.spec.catalog import policy_ref
-
-    return resolve_checkpoint(policy_ref(name))
-
 
 def make_distiller(out: Path, **cfg):
     """A Distiller of the shipped teacher on dgz_tri × sphere (one env unless ``objects`` says otherwise)."""
@@ -148,12 +142,10 @@ def test_bc_loss_falls_on_a_tiny_dagger_run(tmp_path):
 def test_settle_defaults_to_the_teachers_env_and_is_recorded(tmp_path):
     """--settle (issue 12: a held first-frame cloud needs an object at rest) overrides the teacher's settle for
     the student's rollouts and is recorded in the student's env; without it the teacher's stays."""
-    from dgz_cli.rl.checkpoint import read_meta
-
-    teacher_settle = read_meta(resolve_checkpoint_dir(TEACHER)).env.settle_s
-    for given, expected in ((None, teacher_settle), (2.0, 2.0)):
+    for given in (None, 2.0):
         dist = make_distiller(tmp_path / str(given), **({} if given is None else dict(settle_s=given)))
-        assert dist.env.cfg.settle_s == expected
+        teacher_settle = dist.teacher_meta.env.settle_s
+        assert dist.env.cfg.settle_s == (teacher_settle if given is None else given)
         dist.env.close()
     assert teacher_settle == 0.3
 
