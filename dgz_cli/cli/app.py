@@ -288,8 +288,10 @@ def evaluate(
     if approach_cone is not None and not 0.0 <= approach_cone <= math.pi / 2:
         raise DgzError(f"--approach-cone {approach_cone}: must be in [0, π/2] rad",
                        "0 approaches from straight above; the default cone is 0.5")
-    if settle is not None and not (math.isfinite(settle) and 0.0 <= settle <= 10.0):
-        raise DgzError(f"--settle {settle}: must be in [0, 10] s", "e.g. --settle 2 (the default is 0.3)")
+    from dgz_cli.spec.envconfig import MAX_SETTLE_S
+
+    if settle is not None and not (math.isfinite(settle) and 0.0 <= settle <= MAX_SETTLE_S):
+        raise DgzError(f"--settle {settle}: must be in [0, {MAX_SETTLE_S:g}] s", "e.g. --settle 2 (the default is 0.3)")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, guidance_stop_gap=guidance_stop_gap,

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
                                    ControlContract, EpisodeProtocol, ObservationLayout, StartPose,
                                    WristGuidance, check_translation_factors)
-from dgz_cli.spec.envconfig import EnvConfig, GraspXLReward, RewardWeights
+from dgz_cli.spec.envconfig import MAX_SETTLE_S, EnvConfig, GraspXLReward, RewardWeights
 
 ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
 
@@ -108,7 +108,7 @@ class TrainConfig(BaseModel):
     target_noise: float = Field(0.0, ge=0, le=0.1, description="m: std of a per-episode horizontal offset on the "
                                 "grasp target the guidance steers to and the policy observes (training only; env "
                                 "target_noise; 0 = off)")
-    settle_s: float = Field(0.3, ge=0, le=10, description="s the object settles on the table before each episode's "
+    settle_s: float = Field(0.3, ge=0, le=MAX_SETTLE_S, description="s the object settles on the table before each episode's "
                             "first frame (env settle_s; dgz eval --settle sets it for evaluation)")
     physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "
                               "200 halves the physics cost)")

@@ -7,6 +7,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from dgz_cli.policy.student_config import StudentConfig
 from dgz_cli.spec.contract import ObservationLayout
+from dgz_cli.spec.envconfig import MAX_SETTLE_S
 from dgz_cli.spec.hardware_view import HARDWARE, HardwareView
 
 DEFAULT_HANDS = ("allegro", "shadow", "schunk_svh", "ability")
@@ -43,7 +44,7 @@ class DistillConfig(BaseModel):
     threads: int = Field(2, ge=1, le=256, description="physics worker threads")
     torch_threads: int = Field(1, ge=1, le=256, description="torch threads for the fit (rollouts use 1)")
     view: HardwareView = Field(HARDWARE, description="what hardware gives, imposed on the student in simulation")
-    settle_s: float | None = Field(None, ge=0, le=10, description="s the object settles before each episode's first "
+    settle_s: float | None = Field(None, ge=0, le=MAX_SETTLE_S, description="s the object settles before each episode's first "
                                    "frame (None: the teacher's env)")
     student: StudentConfig = StudentConfig()
 

@@ -15,6 +15,10 @@ from pydantic import Field
 from dgz_cli.spec.contract import ControlContract, _Frozen
 
 
+MAX_SETTLE_S = 10.0
+"""s: the longest settle that `dgz eval --settle`, a run's ``settle_s`` and `dgz distill --settle` accept."""
+
+
 class RewardWeights(_Frozen):
     dis: float = Field(0.3, ge=0, le=1e3)
     contact: float = Field(1.0, ge=0, le=1e3)
