@@ -192,9 +192,9 @@ def distill(
     from dgz_cli.cli import distill_cmd
 
     given = dict(teacher=teacher, hands=None if hands is None else tuple(h for h in hands.split(",") if h),
-                 objects=objects, repeat=repeat, iterations=iterations, steps_per_env=steps, epochs=epochs,
+                 objects=objects, repeat=repeat, iterations=iterations, steps=steps, epochs=epochs,
                  learning_rate=learning_rate, finetune_iterations=finetune_iterations, joint_noise=joint_noise,
-                 held_cloud=held_cloud, checkpoint_every=checkpoint_every, seed=seed, settle_s=settle)
+                 held_cloud=held_cloud, checkpoint_every=checkpoint_every, seed=seed, settle=settle)
     raise typer.Exit(distill_cmd.run({k: v for k, v in given.items() if v is not None}, out_dir, resume, asset_root,
                                      out))
 

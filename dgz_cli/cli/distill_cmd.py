@@ -11,13 +11,19 @@ from rich.console import Console
 from rich.markup import escape
 
 
+# The options whose CLI name is not their DistillConfig field's (hyphens aside); used both ways.
+_FIELD_OF_OPTION = {"steps": "steps_per_env", "settle": "settle_s"}
+
+
 def _load_config(given: dict, out: Path, resume: bool):
-    """DistillConfig from its defaults, the run's own record when resuming, and the options given."""
+    """DistillConfig from its defaults, the run's own record when resuming, and the options given
+    (keyed by CLI option name, underscores for hyphens)."""
     from pydantic import ValidationError
 
     from dgz_cli.rl.distill_config import DistillConfig
     from dgz_cli.spec.errors import DgzError
 
+    given = {_FIELD_OF_OPTION.get(k, k): v for k, v in given.items()}
     base: dict = {}
     if resume and (out / "checkpoint.yaml").is_file():
         from dgz_cli.rl.checkpoint import read_meta
@@ -42,7 +48,7 @@ def _load_config(given: dict, out: Path, resume: bool):
     except ValidationError as exc:
         e = exc.errors()[0]
         name = e["loc"][-1] if e["loc"] and e["loc"][0] == "view" else ".".join(map(str, e["loc"]))
-        option = {"settle_s": "settle", "steps_per_env": "steps"}.get(str(name), str(name)).replace("_", "-")
+        option = {f: o for o, f in _FIELD_OF_OPTION.items()}.get(str(name), str(name)).replace("_", "-")
         raise DgzError(f"--{option}: {e['msg']}", "see `dgz distill --help` and docs/distill.md") from None
 
 
