@@ -14,6 +14,7 @@ import numpy as np
 
 from dgz_cli.sim.evaluate import make_env
 from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.sim.slot import PARKED_WRIST_XYZ
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.envconfig import EnvConfig
 from dgz_cli.spec.io import load_spec
@@ -34,7 +35,7 @@ def main() -> None:
     for b, slot in enumerate(env.slots):
         m, d, idx = slot.model, slot.data, slot.idx
         start = d.xpos[idx.object_body][:2].copy()
-        d.qpos[idx.wrist_qadr[:3]] = [0.0, 0.0, 3.0]  # the hand out of the way, as while the object settled
+        d.qpos[idx.wrist_qadr[:3]] = PARKED_WRIST_XYZ  # the hand out of the way, as while the object settled
         d.ctrl[:3] = d.qpos[idx.wrist_qadr[:3]]
         d.qvel[:] = 0.0
         row, now = [], 0.0

@@ -23,6 +23,10 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
     return quat_to_mat(q / np.linalg.norm(q))
 
 
+# Where the wrist waits (m, world frame) while the object settles on the table: far above anything it could touch.
+PARKED_WRIST_XYZ = (0.0, 0.0, 3.0)
+
+
 class Slot:
     """A (hand, object) scene and its own MjData. Slots of the same (hand, object) share one MjModel:
     resets only set joint values (the wrist slides hold the position, its hinges the orientation)."""
@@ -67,7 +71,7 @@ class Slot:
     def reset(self, rng: np.random.Generator) -> None:
         mj, m, d, idx, cfg = self.mj, self.model, self.data, self.idx, self.cfg
         mj.mj_resetData(m, d)
-        d.qpos[idx.wrist_qadr[:3]] = [0.0, 0.0, 3.0]  # out of the way while the object settles
+        d.qpos[idx.wrist_qadr[:3]] = PARKED_WRIST_XYZ
         rot = random_rotation(rng)
         lowest = (idx.cloud @ rot.T)[:, 2].min()
         d.qpos[idx.object_qadr:idx.object_qadr + 3] = [0.0, 0.0, -lowest + 0.002]
