@@ -23,7 +23,6 @@ TEACHER = "dgz-cpu-warmstart"
 TRI = load_spec(resolve_spec("dgz_tri"))
 
 
-
 def make_distiller(out: Path, **cfg):
     """A Distiller of the shipped teacher on dgz_tri × sphere (one env unless ``objects`` says otherwise)."""
     from dgz_cli.cli.distill_cmd import build
