@@ -451,6 +451,8 @@ def test_training_settle_reaches_the_env_config():
     for bad in (-0.1, 10.5):
         with pytest.raises(ValidationError, match="settle_s"):
             TrainConfig(settle_s=bad)
+        with pytest.raises(ValidationError, match="settle_s"):  # the env field itself: a checkpoint's env too
+            EnvConfig(settle_s=bad)
 
 
 def test_pick_roll_by_hand():

@@ -16,7 +16,8 @@ from dgz_cli.spec.contract import ControlContract, _Frozen
 
 
 MAX_SETTLE_S = 10.0
-"""s: the longest settle that `dgz eval --settle`, a run's ``settle_s`` and `dgz distill --settle` accept."""
+"""s: the longest settle an env accepts (`EnvConfig.settle_s`, so also a run's ``settle_s``, `dgz eval --settle`
+and `dgz distill --settle`)."""
 
 
 class RewardWeights(_Frozen):
@@ -64,7 +65,8 @@ class EnvConfig(_Frozen):
     contract: ControlContract = ControlContract()
     approach_distance: float = Field(0.3, gt=0, description="palm centre → object centre at reset")
     approach_cone: float = Field(0.5, ge=0, description="max tilt (rad) of the approach direction from vertical")
-    settle_s: float = Field(0.3, ge=0, description="object settles on the table before the episode starts")
+    settle_s: float = Field(0.3, ge=0, le=MAX_SETTLE_S,
+                            description="s the object settles on the table before the episode starts")
     finger_kp: float = Field(3.0, gt=0, description="N·m/rad, the same for every hand")
     joint_armature: float = Field(0.001, ge=0, description="kg·m², added to every hand joint (motor inertia)")
     wrist_max_lead: float = Field(0.01, gt=0, description="wrist targets stay within this (m, rad) of the wrist joints")
