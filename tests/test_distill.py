@@ -150,12 +150,16 @@ def test_settle_defaults_to_the_teachers_env_and_is_recorded(tmp_path):
 
 
 def test_options_map_to_fields_and_bad_values_name_the_option(tmp_path):
-    """`given` is keyed by CLI option: --steps / --settle land in steps_per_env / settle_s, and a bad value's
-    error names the option the user typed, not the field."""
+    """`given` is keyed by CLI option: --steps / --settle / --history land in steps_per_env / settle_s /
+    student.history, and a bad value's error names the option the user typed, not the field."""
     from dgz_cli.cli.distill_cmd import _load_config
 
-    cfg = _load_config(dict(teacher=TEACHER, steps=33, settle=1.5, joint_noise=0.02), tmp_path / "x", False)
-    assert (cfg.steps_per_env, cfg.settle_s, cfg.view.joint_noise) == (33, 1.5, 0.02)
+    cfg = _load_config(dict(teacher=TEACHER, steps=33, settle=1.5, joint_noise=0.02, history=12), tmp_path / "x",
+                       False)
+    assert (cfg.steps_per_env, cfg.settle_s, cfg.view.joint_noise, cfg.student.history) == (33, 1.5, 0.02, 12)
+    assert _load_config(dict(teacher=TEACHER), tmp_path / "x", False).student.history == 5  # the paper's
+    with pytest.raises(DgzError, match="^--history: "):
+        _load_config(dict(teacher=TEACHER, history=0), tmp_path / "x", False)
     with pytest.raises(DgzError, match="^--settle: "):
         _load_config(dict(teacher=TEACHER, settle=-1.0), tmp_path / "x", False)
     with pytest.raises(DgzError, match="^--steps: "):

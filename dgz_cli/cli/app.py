@@ -182,6 +182,8 @@ def distill(
     settle: Optional[float] = typer.Option(None, "--settle", help="s the object settles on the table before each "
                                            "episode's first frame (default: the teacher's env, 0.3 s unless it was "
                                            "trained with settle_s)"),
+    history: Optional[int] = typer.Option(None, "--history", help="steps the student's LSTM sees, the current one "
+                                          "included (default: 5, the paper's)"),
     checkpoint_every: Optional[int] = typer.Option(None, "--checkpoint-every", help=_distill_default("checkpoint_every")),
     seed: Optional[int] = typer.Option(None, "--seed", help=_distill_default("seed")),
     resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its last checkpoint "
@@ -194,7 +196,8 @@ def distill(
     given = dict(teacher=teacher, hands=None if hands is None else tuple(h for h in hands.split(",") if h),
                  objects=objects, repeat=repeat, iterations=iterations, steps=steps, epochs=epochs,
                  learning_rate=learning_rate, finetune_iterations=finetune_iterations, joint_noise=joint_noise,
-                 held_cloud=held_cloud, checkpoint_every=checkpoint_every, seed=seed, settle=settle)
+                 held_cloud=held_cloud, history=history, checkpoint_every=checkpoint_every, seed=seed,
+                 settle=settle)
     raise typer.Exit(distill_cmd.run({k: v for k, v in given.items() if v is not None}, out_dir, resume, asset_root,
                                      out))
 

@@ -32,12 +32,13 @@ def _load_config(given: dict, out: Path, resume: bool):
         if meta.student is None:
             raise DgzError(f"--out {out}: holds a `dgz train` run, not a distillation", "choose another --out")
         base = meta.student.distill.model_dump()
-    view = dict(base.get("view") or {})
-    for key in ("joint_noise", "held_cloud"):
-        if key in given:
-            view[key] = given.pop(key)
-    if view:
-        base["view"] = view
+    for section, keys in (("view", ("joint_noise", "held_cloud")), ("student", ("history",))):
+        fields = dict(base.get(section) or {})
+        for key in keys:
+            if key in given:
+                fields[key] = given.pop(key)
+        if fields:
+            base[section] = fields
     base.update(given)
     if "teacher" not in base:
         from dgz_cli.spec.errors import DgzError
@@ -47,7 +48,7 @@ def _load_config(given: dict, out: Path, resume: bool):
         return DistillConfig(**base)
     except ValidationError as exc:
         e = exc.errors()[0]
-        name = e["loc"][-1] if e["loc"] and e["loc"][0] == "view" else ".".join(map(str, e["loc"]))
+        name = e["loc"][-1] if e["loc"] and e["loc"][0] in ("view", "student") else ".".join(map(str, e["loc"]))
         option = {f: o for o, f in _FIELD_OF_OPTION.items()}.get(str(name), str(name)).replace("_", "-")
         raise DgzError(f"--{option}: {e['msg']}", "see `dgz distill --help` and docs/distill.md") from None
 
