@@ -122,7 +122,7 @@ def run(given: dict, out: Path, resume: bool, asset_root: str | None, console: C
                   f"{dist.env.B} envs, {cfg.steps_per_env} steps per DAgger iteration, from iteration {dist.iteration}; "
                   f"hardware view: {escape(cfg.view.describe())}; from the teacher: {init.get('copied', 0)} tensors "
                   f"copied, {init.get('partial', 0)} partly, {init.get('fresh', 0)} new", highlight=False)
-    if not run_until_stopped(dist.run, out, existed, tb_before, writer):
+    if not run_until_stopped(dist.run, dist.stop, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {dist.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")
         return 130

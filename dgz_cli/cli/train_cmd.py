@@ -167,7 +167,7 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
              if trainer.iteration == 0 and cfg.init_from is not None else f"from iteration {trainer.iteration}")
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, {start}")
-    if not run_until_stopped(trainer.train, out, existed, tb_before, writer):
+    if not run_until_stopped(trainer.train, trainer.stop, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")
         return 130
@@ -209,15 +209,19 @@ def log_scalars(writer, row: dict) -> None:
     writer.flush()
 
 
-def run_until_stopped(job, out: Path, existed: bool, tb_before: set, writer) -> bool:
-    """Run ``job()`` with SIGTERM and SIGHUP (a closed terminal) raising KeyboardInterrupt like Ctrl-C; the job
-    saves on it. Returns False when interrupted. A job that fails before its first checkpoint leaves nothing
-    behind; the writer is closed and the previous signal handlers restored in every case."""
-    stop_signals = [s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
+def run_until_stopped(job, stop, out: Path, existed: bool, tb_before: set, writer) -> bool:
+    """Run ``job()``; the first Ctrl-C, SIGTERM or SIGHUP (a closed terminal) only sets ``stop`` (the job's
+    :class:`dgz_cli.rl.stop.StopRequest`), which the job turns into KeyboardInterrupt at its next step and saves
+    on; a second one raises KeyboardInterrupt at once. Returns False when interrupted. A job that fails before
+    its first checkpoint leaves nothing behind; the writer is closed and the previous signal handlers restored
+    in every case."""
+    stop_signals = [s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
     previous = {s: signal.getsignal(s) for s in stop_signals}
 
     def _stop(*_) -> None:
-        raise KeyboardInterrupt
+        if stop.requested:  # asked twice: do not wait for the step to end
+            raise KeyboardInterrupt
+        stop.request()
 
     for s in stop_signals:
         signal.signal(s, _stop)

@@ -14,6 +14,7 @@ have a fixed length, so Monte-Carlo returns need no bootstrap.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,14 +55,15 @@ class Demonstrations:
 
 
 def collect(env, teacher, episodes: int, normalizer: ReturnNormalizer, gamma: float, seed: int,
-            student: nn.Module | None = None) -> Demonstrations:
+            student: nn.Module | None = None, check_stop: Callable[[], None] = lambda: None) -> Demonstrations:
     """Roll ``episodes`` whole episodes in every slot of ``env`` (a ``GraspEnv``), labelled with the actions
     of ``teacher`` (``act(obs)`` / ``reset(mask)``, e.g. the scripted grasp of :mod:`dgz_cli.sim.scripted`).
 
     Without ``student`` the scripted grasp acts (plain behaviour cloning); with it the student's mean
     action is executed while the teacher still labels every visited state (DAgger: the clone then learns
     what to do in the states its own mistakes lead to). ``normalizer`` is updated with the rewards (so
-    PPO starts from the same scale) and scales them.
+    PPO starts from the same scale) and scales them. ``check_stop`` is called before every step (it raises
+    to stop, :class:`dgz_cli.rl.stop.StopRequest`).
     """
     obs = env.reset(seed)
     teacher.reset(None)
@@ -71,6 +73,7 @@ def collect(env, teacher, episodes: int, normalizer: ReturnNormalizer, gamma: fl
     successes: list[bool] = []
     steps = episodes * env.cfg.contract.episode.episode_steps
     for _ in range(steps):
+        check_stop()
         a = teacher.act(obs)  # the teacher follows the visited states, whoever acts
         executed = a
         if student is not None:
@@ -103,9 +106,11 @@ def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> 
 
 def pretrain(model: nn.Module, demos: Demonstrations, *, epochs: int = 10, mini_batch: int = 1024,
              learning_rate: float = 5e-4, value_coef: float = 1.0, max_grad_norm: float = 0.5,
-             log_std: float | None = None, seed: int = 0) -> dict[str, float]:
+             log_std: float | None = None, seed: int = 0,
+             check_stop: Callable[[], None] = lambda: None) -> dict[str, float]:
     """Regress the actor's mean onto the demonstrated actions (MSE over valid action dims) and the
-    critic onto their returns; then set the exploration log-std to ``log_std`` if given.
+    critic onto their returns; then set the exploration log-std to ``log_std`` if given. ``check_stop`` is
+    called before every mini-batch.
     Returns the final epoch's mean action and value losses."""
     T, B = demos.actions.shape[:2]
     opt = torch.optim.Adam(model.parameters(), lr=learning_rate)
@@ -116,6 +121,7 @@ def pretrain(model: nn.Module, demos: Demonstrations, *, epochs: int = 10, mini_
         perm = torch.randperm(T * B, generator=gen)
         sums, n = np.zeros(2), 0
         for k in range(0, T * B, mini_batch):
+            check_stop()
             idx = perm[k:k + mini_batch]
             t, b = idx // B, idx % B
             obs = demos.obs(t, b)

@@ -40,6 +40,7 @@ from dgz_cli.rl.checkpoint import STUDENT_FORMAT, CheckpointMeta, NormalizerStat
 from dgz_cli.rl.distill_config import DistillConfig, StudentMeta
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
+from dgz_cli.rl.stop import StopRequest
 from dgz_cli.rl.storage import STATIC_KEYS, RolloutStorage
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
@@ -67,6 +68,7 @@ class Distiller:
             self.reward_norm.load(teacher_meta.reward_normalizer.model_dump())
         self.dagger_done = self.finetune_done = 0
         self.history: list[dict] = []
+        self.stop = StopRequest()  # set by `dgz distill`'s signal handler, honoured between steps
         self.buffer: list[dict[str, torch.Tensor]] = []
         self.hist = TokenHistory(env.B, cfg.student.history, self.model.token_dim)
         self.obs: dict | None = None
@@ -174,6 +176,7 @@ class Distiller:
         obs = self.obs
         with torch.no_grad():
             for _ in range(cfg.steps_per_env):
+                self.stop.check()
                 s_in = self._student_inputs(obs)
                 a = self.model.act(s_in)
                 label = self.teacher.act(to_tensors(env.teacher_obs))
@@ -223,6 +226,7 @@ class Distiller:
             perm = torch.randperm(total, generator=self.gen)
             acc, n = 0.0, 0
             for k in range(0, total, cfg.mini_batch):
+                self.stop.check()
                 idx = perm[k:k + cfg.mini_batch]
                 obs, target = self._batch(idx, starts)
                 mean = model(obs)[0]
@@ -269,6 +273,7 @@ class Distiller:
         episodes: list[dict] = []
         obs = self.obs
         for _ in range(steps):
+            self.stop.check()
             s_in = self._student_inputs(obs)
             out = self.ppo.act(s_in)
             if self.storage is None:

@@ -23,6 +23,7 @@ from dgz_cli.rl.checkpoint import CheckpointMeta, NormalizerState
 from dgz_cli.rl.config import TrainConfig
 from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
+from dgz_cli.rl.stop import StopRequest
 from dgz_cli.rl.storage import RolloutStorage
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
@@ -70,6 +71,7 @@ class Trainer:
         self.reward_norm = ReturnNormalizer(self.env.B, cfg.ppo.gamma)
         self.iteration = 0
         self.history: list[dict] = []
+        self.stop = StopRequest()  # set by `dgz train`'s signal handler, honoured between steps
         self.warm_start: dict | None = None  # behaviour-cloning statistics, once done
         self.pair_success: dict[str, float] = {}  # 'hand/object' → success EMA (prioritised sampling)
         self.git_revision = checkpoint.git_revision()
@@ -179,13 +181,14 @@ class Trainer:
             self.model.eval()
             student = self.model if round_ > 0 else None
             parts.append(bc.collect(self.env, self.teacher_factory(self.env), cfg.bc_episodes, self.reward_norm,
-                                    self.ppo.cfg.gamma, cfg.seed + round_, student=student))
+                                    self.ppo.cfg.gamma, cfg.seed + round_, student=student,
+                                    check_stop=self.stop.check))
             if student is not None:
                 clone_success.append(round(parts[-1].success_rate, 4))
             collect_s += time.perf_counter() - tc
             torch.set_num_threads(cfg.torch_threads)
             stats = bc.pretrain(self.model, bc.Demonstrations.concat(parts), epochs=cfg.bc_epochs,
-                                log_std=cfg.bc_log_std, seed=cfg.seed + round_)
+                                log_std=cfg.bc_log_std, seed=cfg.seed + round_, check_stop=self.stop.check)
         self.warm_start = dict(teacher="scripted", episodes=sum(p.episodes for p in parts),
                                teacher_success_rate=parts[0].success_rate, dagger_rounds=cfg.bc_dagger_rounds,
                                clone_success_rates=clone_success, collect_s=round(collect_s, 1),
@@ -217,6 +220,7 @@ class Trainer:
         # and OpenMP threads spinning against them cost 100× (measured). The update gets them back.
         torch.set_num_threads(1)
         for _ in range(self.cfg.steps_per_env):
+            self.stop.check()
             tf = time.perf_counter()
             obs_t = to_tensors(obs)
             out = self.ppo.act(obs_t)
