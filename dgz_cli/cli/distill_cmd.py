@@ -13,6 +13,8 @@ from rich.markup import escape
 
 # The options whose CLI name is not their DistillConfig field's (hyphens aside); used both ways.
 _FIELD_OF_OPTION = {"steps": "steps_per_env", "settle": "settle_s"}
+# The options that set a field of a nested DistillConfig section (the field has the option's name).
+_SECTION_OPTIONS = {"view": ("joint_noise", "held_cloud"), "student": ("history",)}
 
 
 def _load_config(given: dict, out: Path, resume: bool):
@@ -32,7 +34,7 @@ def _load_config(given: dict, out: Path, resume: bool):
         if meta.student is None:
             raise DgzError(f"--out {out}: holds a `dgz train` run, not a distillation", "choose another --out")
         base = meta.student.distill.model_dump()
-    for section, keys in (("view", ("joint_noise", "held_cloud")), ("student", ("history",))):
+    for section, keys in _SECTION_OPTIONS.items():
         fields = dict(base.get(section) or {})
         for key in keys:
             if key in given:
@@ -48,7 +50,7 @@ def _load_config(given: dict, out: Path, resume: bool):
         return DistillConfig(**base)
     except ValidationError as exc:
         e = exc.errors()[0]
-        name = e["loc"][-1] if e["loc"] and e["loc"][0] in ("view", "student") else ".".join(map(str, e["loc"]))
+        name = e["loc"][-1] if e["loc"] and e["loc"][0] in _SECTION_OPTIONS else ".".join(map(str, e["loc"]))
         option = {f: o for o, f in _FIELD_OF_OPTION.items()}.get(str(name), str(name)).replace("_", "-")
         raise DgzError(f"--{option}: {e['msg']}", "see `dgz distill --help` and docs/distill.md") from None
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 from pathlib import Path
 
 from rich.console import Console
@@ -215,19 +214,12 @@ def run_until_stopped(job, stop, out: Path, existed: bool, tb_before: set, write
     on; a second one raises KeyboardInterrupt at once. Returns False when interrupted. A job that fails before
     its first checkpoint leaves nothing behind; the writer is closed and the previous signal handlers restored
     in every case."""
-    stop_signals = [s for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None]
-    previous = {s: signal.getsignal(s) for s in stop_signals}
+    from dgz_cli.runtime.rate import InterruptGuard  # the deploy loop's two-stage guard
 
-    def _stop(*_) -> None:
-        if stop.requested:  # asked twice: do not wait for the step to end
-            raise KeyboardInterrupt
-        stop.request()
-
-    for s in stop_signals:
-        signal.signal(s, _stop)
     saved = _mtime(out / "checkpoint.yaml")
     try:
-        job()
+        with InterruptGuard(on_first=stop.request):
+            job()
     except KeyboardInterrupt:
         return False
     except BaseException:
@@ -236,8 +228,6 @@ def run_until_stopped(job, stop, out: Path, existed: bool, tb_before: set, write
             _clean_failed_run(out, existed, tb_before)
         raise
     finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler if handler is not None else signal.SIG_DFL)
         writer.close()
     return True
 

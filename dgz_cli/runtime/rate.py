@@ -71,9 +71,11 @@ class InterruptGuard:
     """First Ctrl-C, SIGTERM or SIGHUP: ask the loop to stop at the next step boundary (then hold/relax as
     configured). A second one (any of them): raise KeyboardInterrupt at once (the runtime relaxes the hand
     immediately). Installs the handlers only in the main thread; elsewhere it is a plain flag.
-    ``signum`` is the first signal received (None: none yet, or a stop requested in code)."""
+    ``signum`` is the first signal received (None: none yet, or a stop requested in code). ``on_first`` is
+    called from the first signal's handler (e.g. to set a training loop's stop request)."""
 
-    def __init__(self, signals=STOP_SIGNALS) -> None:
+    def __init__(self, signals=STOP_SIGNALS, on_first=None) -> None:
+        self.on_first = on_first
         self.count = 0
         self.signum: int | None = None
         self.last: int | None = None
@@ -108,6 +110,8 @@ class InterruptGuard:
         self.count += 1
         if self.count >= 2:
             raise KeyboardInterrupt
+        if self.on_first is not None:
+            self.on_first()
 
     def __enter__(self) -> "InterruptGuard":
         if threading.current_thread() is threading.main_thread():
