@@ -73,6 +73,59 @@ def test_guidance_stop_gap_reads_the_wrist_node_and_the_clip():
         ControlContract(guidance=WristGuidance(gain=0.1, stop_gap=0.3))
 
 
+def test_aim_residual_shifts_the_guidances_aim_by_hand():
+    """``guidance.aim_residual``: the wrist's translation action no longer moves the palm by ``wrist_scale``; it
+    shifts the guidance's aim by ``aim_residual`` per unit, so the step is gain × (target + shift − grasp point),
+    capped like any guidance step; rotation dims keep ``wrist_scale``; outside the grasp phase translation does
+    nothing. It needs the guidance on."""
+    c = ControlContract(guidance=WristGuidance(gain=0.1, speed_cap=0.01, aim_residual=0.05))
+    lay = c.observation
+    glob = np.zeros((3, lay.global_dim))
+    glob[:, lay.global_col("target")] = np.array([0.0, 0.0, 0.06]) / lay.target_scale
+    wrist = np.array([[0.0, 0.4, 0.0, 0.5, 0.0, 0.0], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.4, 0.0, 0.5, 0.0, 0.0]])
+    cmd = c.wrist_command(wrist, glob, np.zeros((3, 3)), np.array([True, True, False]))
+    # aim shifted 0.4 × 5 cm = 2 cm along l: 0.1 × (0, 0.02, 0.06); rotation 0.5 × 1 cm
+    np.testing.assert_allclose(cmd[0], [0.0, 0.002, 0.006, 0.005, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(cmd[1, :3], np.array([0.05, 0.05, 0.11]) * 0.01 / np.linalg.norm([0.05, 0.05, 0.11]))
+    np.testing.assert_allclose(cmd[2], [0, 0, 0, 0.005, 0, 0], atol=1e-12)  # lift / hold: no translation at all
+    velocity = ControlContract(guidance=WristGuidance(gain=0.1, speed_cap=0.01))
+    np.testing.assert_allclose(velocity.wrist_command(wrist[:1], glob[:1], np.zeros((1, 3)), np.array([True]))[0],
+                               [0.0, 0.004, 0.006, 0.005, 0, 0], atol=1e-12)  # by default 0.4 × 1 cm per step
+    with pytest.raises(ValueError, match="needs guidance.gain > 0"):
+        ControlContract(guidance=WristGuidance(aim_residual=0.05))
+    lateral = ControlContract(guidance=WristGuidance(gain=0.1, speed_cap=0.01, aim_residual=0.05,
+                                                     aim_axes=(False, True, False)))
+    mixed = np.array([[0.2, 0.4, 0.3, 0.0, 0.0, 0.0]])
+    # l shifts the aim (0.1 × 0.02 = 0.002); f and n stay velocities (0.2 and 0.3 × 1 cm) on the guidance's (0, _, 0.006)
+    np.testing.assert_allclose(lateral.wrist_command(mixed, glob[:1], np.zeros((1, 3)), np.array([True]))[0],
+                               [0.002, 0.002, 0.009, 0, 0, 0], atol=1e-12)
+
+
+def test_an_aim_residual_holds_the_palm_off_a_moving_aim_instead_of_driving_it_on():
+    """In the env, a constant lateral translation action under ``aim_residual`` settles the palm at a fixed
+    offset from the guided position (gain 0.05: about aim × action after a few time constants); the same action
+    as a velocity keeps moving the palm until the guidance's pull balances it, and on a target that moves with
+    the palm (a pushed object) it would never stop."""
+    moved = {}
+    for aim in (0.02, None):
+        c = ControlContract(observation=MARKOV, guidance=WristGuidance(gain=0.05, aim_residual=aim))
+        env = _env(EnvConfig(contract=c))
+        env.reset()
+        a = np.zeros((1, env.action_dim))
+        a[:, 1] = 1.0
+        rot0 = env.state()["palm_rot"][0].copy()
+        guided = _env(EnvConfig(contract=c))
+        guided.reset()
+        for _ in range(80):
+            env.step(a)
+            guided.step(np.zeros((1, env.action_dim)))
+        moved[aim] = float((rot0.T @ (env.state()["palm_pos"][0] - guided.state()["palm_pos"][0]))[1])
+        env.close()
+        guided.close()
+    assert 0.012 < moved[0.02] < 0.021  # the aim shift (2 cm) less what the guidance has not yet closed
+    assert moved[None] > 0.1  # 1 cm per step against the guidance's pull: settles at 0.01 / 0.05 = 20 cm
+
+
 def test_finger_lead_cap_by_hand():
     act = ActionLayout(finger_max_lead=0.05)
     one = lambda *v: np.array([v], dtype=float)  # noqa: E731

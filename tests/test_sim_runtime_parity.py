@@ -97,3 +97,26 @@ def test_deploy_on_sim_reproduces_eval_for_a_student(tmp_path):
     np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
     assert np.ptp(expected[:, 6:], axis=0).max() > 0.1
     assert header["privileged_zeroed"] == []
+
+
+def test_deploy_on_sim_reproduces_eval_with_an_aim_residual(tmp_path):
+    """A checkpoint whose contract turns the wrist's translation action into a shift of the guidance's aim
+    (``guidance.aim_residual``): the runtime composes the wrist command as the simulator does, so the palm, and
+    with it every later observation and action, stays the same."""
+    from pathlib import Path
+
+    from dgz_cli.rl.checkpoint import load, save
+
+    tensors, meta = load(Path(__file__).resolve().parents[1] / "policies" / "dgz-cpu-variants")
+    contract = meta.env.contract.model_copy(update=dict(
+        guidance=meta.env.contract.guidance.model_copy(update=dict(aim_residual=0.05))))
+    ControlContract.model_validate(contract.model_dump())
+    save(tmp_path / "aim", tensors, meta.model_copy(update=dict(env=meta.env.model_copy(update=dict(contract=contract)))))
+    policy = str(tmp_path / "aim")
+    expected, record = _eval_actions(policy)
+    got, header, end = _deploy_actions(policy, tmp_path)
+    assert header["contract"]["guidance"]["aim_residual"] == 0.05
+    np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
+    assert np.abs(expected[:120, :3]).max() > 0.05  # the policy's translation actions are not all zero
+    base, _ = _eval_actions("dgz-cpu-variants")
+    assert np.abs(base - expected).max() > 1e-3  # and the aim changes the episode: not a vacuous comparison

@@ -72,6 +72,10 @@ class TrainConfig(BaseModel):
     guidance_stop_gap: float | None = Field(None, gt=0, le=0.25, description="m: the guidance stops moving the palm "
                                             "toward the object along its normal once the palm is this close to the "
                                             "surface (contract guidance.stop_gap; None = it presses on)")
+    guidance_aim_residual: float | None = Field(None, gt=0, le=0.2, description="m per unit: the policy's wrist "
+                                                "translation action shifts the guidance's aim instead of moving the "
+                                                "wrist (contract guidance.aim_residual; needs guidance_gain > 0; "
+                                                "None = it is a velocity)")
     roll: Literal["uniform", "narrow", "clear"] = Field("uniform", description="start roll: uniform, closing "
                                                         "across the object's narrowest width (narrow), or that "
                                                         "among the rolls whose hand clears the table (clear)")
@@ -119,7 +123,8 @@ class TrainConfig(BaseModel):
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     init_from: str | None = Field(None, min_length=1, description="fine-tune: a checkpoint folder or shipped policy "
                                   "whose weights and return scale start the run (same model and control contract, "
-                                  "but for the residual factors and the guidance stop gap; None = a fresh network)")
+                                  "but for the residual factors, the guidance stop gap and aim residual; None = a "
+                                  "fresh network)")
     ppo: PPOConfig = PPOConfig()
 
     @field_validator("physics_hz")
@@ -156,7 +161,8 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                                    finger_residual=cfg.finger_residual,
                                                    wrist_translation_residual=cfg.wrist_translation_residual),
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
-                               guidance=WristGuidance(gain=cfg.guidance_gain, stop_gap=cfg.guidance_stop_gap),
+                               guidance=WristGuidance(gain=cfg.guidance_gain, stop_gap=cfg.guidance_stop_gap,
+                                                      aim_residual=cfg.guidance_aim_residual),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
                                                   close_guide=cfg.prior_close_guide),
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))

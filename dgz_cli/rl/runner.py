@@ -267,13 +267,13 @@ class Trainer:
 
 
 RESIDUAL_FACTORS = ("wrist_residual", "wrist_translation_residual", "finger_residual")
-FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + ("guidance.stop_gap",)
+FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + ("guidance.stop_gap", "guidance.aim_residual")
 
 
 def _without_fine_tunable(contract) -> dict:
     """The contract as a dict, less the fields a fine-tune may change (``FINE_TUNABLE``: the action's residual
-    factors and the guidance's stop gap): they change how the command is composed, not any tensor's shape or
-    meaning."""
+    factors, the guidance's stop gap and aim residual): they change how the command is composed, not any
+    tensor's shape or meaning."""
     dump = contract.model_dump()
     for path in FINE_TUNABLE:
         part, field = path.split(".")

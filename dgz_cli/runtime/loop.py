@@ -209,7 +209,7 @@ class Runner:
             obs = self.builder.build(StepInput(k, state, safety.target.copy(), last_action, wrist, self.arm.palm_pose()))
             raw = np.asarray(self.policy.act(obs), dtype=float).reshape(-1)
             cmd = safety.step(self._compose(raw, obs), q=None if state is None else state.q)
-            command = cmd.wrist + self._guidance(obs, phase)
+            command = self._wrist_command(cmd, obs, phase)
             wrist = self.kf.update(command) if cfg.wrist_filter else command
             lift = ep.lift_per_step() if phase == "lift" else 0.0
             arm_log = {} if cfg.dry_run else self.arm.command(wrist, "palm", lift=lift)
@@ -230,12 +230,13 @@ class Runner:
         obs_arrays = [np.asarray(obs[k]) for k in ("nodes", "global", "closing", "node_valid")]
         return c.compose(raw[None], *obs_arrays)[0]
 
-    def _guidance(self, obs, phase: str) -> np.ndarray:
-        """The contract's wrist guidance (zero when off), from the observation's target block: the same
-        computation as the simulator's (``GraspEnv.guidance``)."""
+    def _wrist_command(self, cmd, obs, phase: str) -> np.ndarray:
+        """The wrist command (6,) m and rad: the safe command's wrist plus the contract's wrist guidance (none
+        when off) from the observation's target block — the simulator's computation
+        (``ControlContract.wrist_command``)."""
         c = self.cfg.contract
         if c.guidance.gain == 0.0:
-            return np.zeros(c.action.wrist_dim)
+            return cmd.wrist
         if self.grasp_offset is None or not isinstance(obs, dict) or "global" not in obs:
             raise DgzError("the policy's contract guides the wrist, but its observation has no grasp target",
                            "give the policy its own observation builder (trained checkpoints bring one)")
@@ -243,8 +244,8 @@ class Runner:
             raise DgzError("the policy's contract stops the wrist guidance near the object, but its observation has "
                            "no palm → surface distance (nodes)",
                            "give the policy its own observation builder (trained checkpoints bring one)")
-        return c.guidance_action(obs["global"], self.grasp_offset[None], np.array([phase == "grasp"]),
-                                 obs.get("nodes"), obs.get("node_valid"))[0]
+        return c.wrist_command(cmd.action[None, :c.action.wrist_dim], obs["global"], self.grasp_offset[None],
+                               np.array([phase == "grasp"]), obs.get("nodes"), obs.get("node_valid"))[0]
 
     # -- entry point -------------------------------------------------------------------------------
     def run(self, start_pose: np.ndarray | None = None) -> RunResult:

@@ -234,8 +234,9 @@ class GraspEnv:
         new_targets = finger_targets(self.targets, alpha, self.joint_node, self.joint_prim, self.joint_sign,
                                      self.joint_slot, self.limits[..., 0], self.limits[..., 1], act, q=self.buf["q"])
         self.set_targets(new_targets, alpha if act.mode == "primitive" else np.zeros_like(alpha))
-        self.move_wrist(wrist * act.wrist_scale + self.guidance(self._global, self._nodes),
-                        self.lifting() * ep.lift_per_step())
+        c = cfg.contract
+        self.move_wrist(c.wrist_command(wrist, self._global, self.grasp_offset, self.t < ep.grasp_steps, self._nodes,
+                                        self.node_valid), self.lifting() * ep.lift_per_step())
 
     def guidance(self, glob: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """(B, 6) the contract's wrist guidance from an observation's global (B, global_dim) and node

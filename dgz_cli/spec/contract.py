@@ -130,13 +130,26 @@ class WristGuidance(_Frozen):
                                    "nearest object-surface point (the wrist node's d), the guidance no longer moves "
                                    "the palm toward the object along its normal n (it still centres it in f and l); "
                                    "None = it presses on until the grasp point reaches the target")
+    aim_residual: float | None = Field(None, gt=0, le=0.2, description="m per normalized unit: the policy's wrist "
+                                       "translation action (after the residual gains and the clip) shifts the "
+                                       "guidance's aim (the target, palm frame) by this instead of moving the wrist, "
+                                       "so it sets an offset the palm keeps from a moving object rather than a "
+                                       "velocity that drives the palm on; outside the grasp phase the translation "
+                                       "dims do nothing. None = they move the wrist by wrist_scale per step")
+    aim_axes: tuple[bool, bool, bool] = Field((True, True, True), description="the palm axes (f, l, n) whose "
+                                              "translation action is an aim shift under aim_residual; the others "
+                                              "stay velocities")
 
     def delta(self, target_m: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray,
-              palm_gap: np.ndarray | None = None) -> np.ndarray:
+              palm_gap: np.ndarray | None = None, aim_shift: np.ndarray | None = None) -> np.ndarray:
         """(B, 6) wrist command (m, palm frame; zero rotation) from the palm → target vectors (B, 3) m and the
         palm → grasp-point offsets (B, 3) m, both in the palm frame; ``active`` (B,) bool; ``palm_gap`` (B,) m,
-        palm centre → nearest surface point (needed when ``stop_gap`` is set)."""
-        step = self.gain * (np.asarray(target_m) - np.asarray(grasp_offset))
+        palm centre → nearest surface point (needed when ``stop_gap`` is set); ``aim_shift`` (B, 3) m, palm
+        frame, added to the target (see ``aim_residual``)."""
+        aim = np.asarray(target_m, dtype=np.float64)
+        if aim_shift is not None:
+            aim = aim + np.asarray(aim_shift, dtype=np.float64)
+        step = self.gain * (aim - np.asarray(grasp_offset))
         if self.stop_gap is not None:
             if palm_gap is None:
                 raise ValueError("WristGuidance.stop_gap needs the palm gap")
@@ -323,6 +336,8 @@ class ControlContract(_Frozen):
             raise ValueError("the closing prior reads the 'phase' block: use an observation layout that has it")
         if self.prior.enabled and self.prior.close_guide is not None and not self.observation.has("guide"):
             raise ValueError("prior.close_guide reads the 'guide' block: use an observation layout that has it")
+        if self.guidance.aim_residual is not None and self.guidance.gain == 0.0:
+            raise ValueError("guidance.aim_residual shifts the guidance's aim: it needs guidance.gain > 0")
         if self.guidance.stop_gap is not None and self.guidance.stop_gap >= self.observation.distance_clip:
             raise ValueError(f"guidance.stop_gap {self.guidance.stop_gap} m must be below the observation's "
                              f"distance_clip {self.observation.distance_clip} m (the palm gap is read from d)")
@@ -343,12 +358,29 @@ class ControlContract(_Frozen):
         d = np.asarray(nodes)[..., lay.node_col("d")].astype(np.float64) * lay.distance_clip
         return np.where(self.wrist_nodes(nodes, node_valid), np.linalg.norm(d, axis=-1), np.inf).min(-1)
 
+    def wrist_command(self, wrist_action: np.ndarray, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray,
+                      nodes: np.ndarray | None = None, node_valid: np.ndarray | None = None) -> np.ndarray:
+        """(B, 6) the wrist command (m and rad, palm frame; the lift comes on top) from the composed and clipped
+        wrist action (B, wrist_dim) and the observation: the action × ``wrist_scale`` plus
+        :meth:`guidance_action`; with ``guidance.aim_residual`` the translation dims shift the guidance's aim
+        instead of moving the wrist (on the ``guidance.aim_axes``). The simulator and the deploy loop both call this."""
+        a = np.asarray(wrist_action, dtype=np.float64)
+        out = a * self.action.wrist_scale
+        shift = None
+        if self.guidance.aim_residual is not None:
+            axes = np.asarray(self.guidance.aim_axes, dtype=bool)
+            shift = a[:, :3] * self.guidance.aim_residual * axes
+            out[:, :3] = np.where(axes, 0.0, out[:, :3])
+        return out + self.guidance_action(glob, grasp_offset, active, nodes, node_valid, aim_shift=shift)
+
     def guidance_action(self, glob: np.ndarray, grasp_offset: np.ndarray, active: np.ndarray,
-                        nodes: np.ndarray | None = None, node_valid: np.ndarray | None = None) -> np.ndarray:
+                        nodes: np.ndarray | None = None, node_valid: np.ndarray | None = None,
+                        aim_shift: np.ndarray | None = None) -> np.ndarray:
         """(B, 6) the wrist guidance from observations' global features (B, global_dim): the target block
-        decoded to metres, then :meth:`WristGuidance.delta`; zeros when the guidance is off. With
-        ``guidance.stop_gap`` it also reads the palm gap from the nodes (B, N, node_dim) and node_valid (B, N).
-        The simulator and the deploy loop both call this, on the observation the policy sees."""
+        decoded to metres (shifted by ``aim_shift`` (B, 3) m if given), then :meth:`WristGuidance.delta`; zeros
+        when the guidance is off. With ``guidance.stop_gap`` it also reads the palm gap from the nodes
+        (B, N, node_dim) and node_valid (B, N). The simulator and the deploy loop both call this, on the
+        observation the policy sees."""
         if self.guidance.gain == 0.0:
             return np.zeros(np.shape(glob)[:1] + (6,))
         lay = self.observation
@@ -358,7 +390,7 @@ class ControlContract(_Frozen):
             if nodes is None or node_valid is None:
                 raise ValueError("guidance.stop_gap reads the palm gap: pass the observation's nodes and node_valid")
             gap = self.palm_gap(nodes, node_valid)
-        return self.guidance.delta(target, grasp_offset, active, gap)
+        return self.guidance.delta(target, grasp_offset, active, gap, aim_shift)
 
     def compose(self, policy_action: np.ndarray, nodes: np.ndarray, glob: np.ndarray, closing: np.ndarray,
                 node_valid: np.ndarray) -> np.ndarray:
