@@ -162,7 +162,7 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     other = _load_config({"init_from": str(tmp_path / "src"), "guidance_gain": 0.1}, None, tmp_path / "x", resume=False)
     with pytest.raises(DgzError, match=r"control contract differs from this run's \(at guidance.gain\).*only action.wrist_residual, "
                                        r"action.wrist_translation_residual, action.finger_residual, "
-                                       r"guidance.stop_gap may change"):
+                                       r"guidance.stop_gap, guidance.aim_residual, guidance.aim_axes may change"):
         build(other, tmp_path / "x", None)
 
 

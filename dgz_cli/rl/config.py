@@ -123,8 +123,8 @@ class TrainConfig(BaseModel):
     init_log_std: float | None = Field(None, ge=-10, le=2, description="initial exploration log-std (None: the preset's)")
     init_from: str | None = Field(None, min_length=1, description="fine-tune: a checkpoint folder or shipped policy "
                                   "whose weights and return scale start the run (same model and control contract, "
-                                  "but for the residual factors, the guidance stop gap and aim residual; None = a "
-                                  "fresh network)")
+                                  "but for the residual factors and the guidance's stop gap, aim residual and "
+                                  "aim axes; None = a fresh network)")
     ppo: PPOConfig = PPOConfig()
 
     @field_validator("physics_hz")

@@ -267,13 +267,14 @@ class Trainer:
 
 
 RESIDUAL_FACTORS = ("wrist_residual", "wrist_translation_residual", "finger_residual")
-FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + ("guidance.stop_gap", "guidance.aim_residual")
+FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + (
+    "guidance.stop_gap", "guidance.aim_residual", "guidance.aim_axes")
 
 
 def _without_fine_tunable(contract) -> dict:
     """The contract as a dict, less the fields a fine-tune may change (``FINE_TUNABLE``: the action's residual
-    factors, the guidance's stop gap and aim residual): they change how the command is composed, not any
-    tensor's shape or meaning."""
+    factors, the guidance's stop gap, aim residual and aim axes): they change how the command is composed, not
+    any tensor's shape or meaning."""
     dump = contract.model_dump()
     for path in FINE_TUNABLE:
         part, field = path.split(".")
