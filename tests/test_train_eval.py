@@ -254,6 +254,13 @@ def test_run_config_file_sets_ppo_and_the_cli_overrides_it(tmp_path):
     conf.write_text("ppo:\n  num_epochs: 0\n")
     with pytest.raises(DgzError, match="run.yaml: --ppo.num-epochs"):
         _load_config({}, conf, tmp_path / "out", resume=False)
+    # the contract's cross-field rules are config errors too (one line, before any env is built)
+    conf.write_text("guidance_aim_residual: 0.05\n")
+    with pytest.raises(DgzError, match=r"run config: guidance.aim_residual .* needs guidance.gain > 0"):
+        _load_config({}, conf, tmp_path / "out", resume=False)
+    conf.write_text("closing_prior: true\n")
+    with pytest.raises(DgzError, match="run config: the closing prior reads the 'phase' block"):
+        _load_config({}, conf, tmp_path / "out", resume=False)
 
 
 def test_cli_defaults_come_from_the_config_model():

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, ActionLayout, ClosingPrior,
                                    ControlContract, EpisodeProtocol, ObservationLayout, StartPose,
@@ -144,6 +145,18 @@ class TrainConfig(BaseModel):
     def _one_warm_start(self) -> "TrainConfig":
         if self.init_from is not None and self.bc_episodes > 0:
             raise ValueError("init_from and bc_episodes are two warm starts; give one of them")
+        return self
+
+    @model_validator(mode="after")
+    def _valid_contract(self) -> "TrainConfig":
+        """The control contract's own cross-field rules (e.g. the closing prior reads the markov layout's phase,
+        an aim residual needs the guidance) hold for the contract this config builds, so a config that breaks
+        them fails where every other config error does, not later while the env is built."""
+        try:
+            env_config(self)
+        except ValidationError as exc:
+            # the contract's message as written (no second "Value error, " prefix), as spec.models does
+            raise PydanticCustomError("contract", exc.errors()[0]["msg"].removeprefix("Value error, ")) from None
         return self
 
 

@@ -240,7 +240,8 @@ class GraspEnv:
 
     def guidance(self, glob: np.ndarray, nodes: np.ndarray) -> np.ndarray:
         """(B, 6) the contract's wrist guidance from an observation's global (B, global_dim) and node
-        (B, N, node_dim) features, the same computation the deploy runtime makes from the observation it builds."""
+        (B, N, node_dim) features, without a ``guidance.aim_residual`` shift (that needs the action:
+        ``ControlContract.wrist_command``, which :meth:`apply_action` and the deploy runtime call)."""
         c = self.cfg.contract
         return c.guidance_action(glob, self.grasp_offset, self.t < c.episode.grasp_steps, nodes, self.node_valid)
 
