@@ -583,3 +583,40 @@ def test_target_noise_shifts_the_observed_target_horizontally_per_episode_in_tra
                          threads=1)
     assert evaluated.cfg.target_noise == 0.0 and not evaluated.target_shift.any()
     evaluated.close()
+
+
+def test_dynamics_noise_scales_mass_friction_and_finger_force_per_episode_and_slot_in_training_only():
+    """dynamics_noise r: each slot gets its own model; every episode scales the object's mass and inertia, every
+    geom's friction and the finger actuators' force limits (not the wrist's) by factors in [e^-r, e^r], other
+    factors in another episode or slot; without it the slots of one pair share the compiled model, and dgz eval's
+    env builder turns it off."""
+    from dgz_cli.sim.evaluate import make_env
+
+    box = resolve_objects("box")[0]
+    plain = GraspEnv([(TRI, box)] * 2, EnvConfig(), seed=4, threads=1)
+    assert plain.slots[0].model is plain.slots[1].model
+    nominal = plain.slots[0].model
+    ob = plain.slots[0].idx.object_body
+    r = 0.3
+    noisy = GraspEnv([(TRI, box)] * 2, EnvConfig(dynamics_noise=r), seed=4, threads=1)
+    assert noisy.slots[0].model is not noisy.slots[1].model
+    drawn = []
+    for episode in range(2):
+        noisy.reset(seed=4 + episode)
+        for s in noisy.slots:
+            mass, friction, force = s.dynamics
+            assert all(math.exp(-r) <= f <= math.exp(r) for f in s.dynamics)
+            m = s.model
+            assert m.body_mass[ob] == pytest.approx(nominal.body_mass[ob] * mass)
+            np.testing.assert_allclose(m.body_inertia[ob], nominal.body_inertia[ob] * mass)
+            np.testing.assert_allclose(m.geom_friction, nominal.geom_friction * friction)
+            np.testing.assert_allclose(m.actuator_forcerange[6:], nominal.actuator_forcerange[6:] * force)
+            np.testing.assert_array_equal(m.actuator_forcerange[:6], nominal.actuator_forcerange[:6])
+            assert (nominal.actuator_forcerange[6:] != 0).any()  # the finger limits exist, so the check bites
+            drawn.append(s.dynamics)
+    assert len({d for d in drawn}) == 4  # per slot and per episode
+    noisy.step(np.zeros((2, noisy.action_dim)))
+    evaluated = make_env([(TRI, box)] * 2, EnvConfig(dynamics_noise=r), seed=4, threads=1)
+    assert evaluated.cfg.dynamics_noise == 0.0 and evaluated.slots[0].model is evaluated.slots[1].model
+    for env in (plain, noisy, evaluated):
+        env.close()

@@ -113,6 +113,9 @@ class TrainConfig(BaseModel):
     target_noise: float = Field(0.0, ge=0, le=0.1, description="m: std of a per-episode horizontal offset on the "
                                 "grasp target the guidance steers to and the policy observes (training only; env "
                                 "target_noise; 0 = off)")
+    dynamics_noise: float = Field(0.0, ge=0, le=1.0, description="r: per episode the object's mass, the contact "
+                                  "friction and the finger force limits are each scaled by a log-uniform factor in "
+                                  "[e^-r, e^r] (training only; env dynamics_noise; 0 = off)")
     settle_s: float = Field(0.3, ge=0, le=MAX_SETTLE_S, description="s the object settles on the table before each episode's "
                             "first frame (env settle_s; dgz eval --settle sets it for evaluation)")
     physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "
@@ -181,4 +184,5 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
                      graspxl=GraspXLReward(residual=cfg.residual_weight, displace=cfg.displace_weight),
-                     roll=cfg.roll, early_stop=cfg.early_stop, target_noise=cfg.target_noise, settle_s=cfg.settle_s)
+                     roll=cfg.roll, early_stop=cfg.early_stop, target_noise=cfg.target_noise, settle_s=cfg.settle_s,
+                     dynamics_noise=cfg.dynamics_noise)

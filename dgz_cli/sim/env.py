@@ -16,6 +16,8 @@ the time limit or a MuJoCo instability (that slot alone is reset, and counted).
 
 from __future__ import annotations
 
+import copy
+
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -45,7 +47,9 @@ class GraspEnv:
                 model, index, _ = build_scene(spec, obj, cfg, asset_root, seed)
                 cache[key] = (model, index, contact_table(model, index), len(cache))
             model, index, pair_node, m = cache[key]
-            self.slots.append(Slot(spec, obj, model, index, cfg, pair_node))  # slots share the (hand, object) model
+            if cfg.dynamics_noise > 0:  # each slot's dynamics are drawn per episode: it needs its own model
+                model = copy.copy(model)
+            self.slots.append(Slot(spec, obj, model, index, cfg, pair_node))  # else slots share the (hand, object) model
             model_of.append(m)
         self.B = len(self.slots)
         self.N = max(len(s.spec.nodes) for s in self.slots)
@@ -190,6 +194,9 @@ class GraspEnv:
         rng = np.random.default_rng([self.seed, b, int(self.episodes[b])])
         self.episodes[b] += 1
         s = self.slots[b]
+        if self.cfg.dynamics_noise > 0:  # its own stream, so the start state's draws are the same either way
+            r = self.cfg.dynamics_noise
+            s.set_dynamics(*np.exp(np.random.default_rng([self.seed, b, int(self.episodes[b]), 1]).uniform(-r, r, 3)))
         s.reset(rng)
         if self.cfg.target_noise > 0:  # drawn after the slot's own draws, so the start state is the same either way
             self.target_shift[b, :2] = rng.normal(0.0, self.cfg.target_noise, 2)

@@ -117,9 +117,10 @@ def make_env(pairs: list[tuple[HandSpec, ObjectModel]], cfg: EnvConfig, *, view:
              **kwargs) -> GraspEnv:
     """A :class:`GraspEnv`, or under an active hardware ``view`` a
     :class:`~dgz_cli.sim.hardware.HardwareViewEnv` (the observation a real hand and camera give). Evaluation
-    and deploy run the full protocol: a training-only ``early_stop`` and ``target_noise`` are turned off."""
-    if cfg.early_stop or cfg.target_noise:
-        cfg = cfg.model_copy(update=dict(early_stop=False, target_noise=0.0))
+    and deploy run the full protocol: a training-only ``early_stop``, ``target_noise`` and ``dynamics_noise`` are
+    turned off."""
+    if cfg.early_stop or cfg.target_noise or cfg.dynamics_noise:
+        cfg = cfg.model_copy(update=dict(early_stop=False, target_noise=0.0, dynamics_noise=0.0))
     if view is not None and view.active:
         from dgz_cli.sim.hardware import HardwareViewEnv
 

@@ -54,6 +54,10 @@ class Slot:
         self.mount = quat_to_mat(model.body_quat[wid])  # compiled quaternions are unit
         self.base = model.body_pos[wid].copy()
         self.hinge_axes = index.palm_axes_w.T  # f, l, n in the mount frame
+        ob = index.object_body  # the compiled dynamics that set_dynamics scales
+        self._nominal = (model.body_mass[ob].copy(), model.body_inertia[ob].copy(), model.geom_friction.copy(),
+                         model.actuator_forcerange.copy())
+        self.dynamics = (1.0, 1.0, 1.0)  # scales of the object's mass, the contact friction, the finger force limits
 
     def bind(self, xpos: np.ndarray, xmat: np.ndarray, qpos: np.ndarray, qvel: np.ndarray, force: np.ndarray,
              stash_contacts: bool = False) -> None:
@@ -68,6 +72,20 @@ class Slot:
         self.stash_contacts = stash_contacts and self._elliptic
 
     # -- reset -------------------------------------------------------------------------------
+    def set_dynamics(self, mass: float, friction: float, finger_force: float) -> None:
+        """Scale the compiled model's nominal object mass and inertia, every geom's friction coefficients and
+        the finger actuators' force limits (the wrist's six are left alone) by these factors (1 = as compiled),
+        then recompute the model's derived constants. Only for a slot with its own model
+        (``EnvConfig.dynamics_noise``): slots of one (hand, object) share theirs otherwise."""
+        mass0, inertia0, friction0, force0 = self._nominal
+        m, ob = self.model, self.idx.object_body
+        m.body_mass[ob] = mass0 * mass
+        m.body_inertia[ob] = inertia0 * mass
+        m.geom_friction[:] = friction0 * friction
+        m.actuator_forcerange[6:] = force0[6:] * finger_force
+        self.mj.mj_setConst(m, self.data)
+        self.dynamics = (float(mass), float(friction), float(finger_force))
+
     def reset(self, rng: np.random.Generator) -> None:
         mj, m, d, idx, cfg = self.mj, self.model, self.data, self.idx, self.cfg
         mj.mj_resetData(m, d)

@@ -95,6 +95,11 @@ class EnvConfig(_Frozen):
                                 "added to the grasp target (the observed cloud centroid the guidance steers to), so "
                                 "a fixed wrist offset stops paying and the object's surface has to be read; rewards "
                                 "and success use the true state; dgz eval and deploy turn it off")
+    dynamics_noise: float = Field(0.0, ge=0, le=1.0, description="training only (issue 11, a domain "
+                                  "randomisation): half-width r of a log-uniform scale in [e^-r, e^r] drawn per "
+                                  "episode and slot, one each for the object's mass (and inertia), the contact "
+                                  "friction (every geom's) and the finger actuators' force limits; each slot then "
+                                  "has its own copy of the compiled model; dgz eval and deploy turn it off")
     early_stop: bool = Field(False, description="training only (issue 11, throughput): end an episode as a true "
                              "terminal state once it can no longer succeed — nothing touched by the end of the grasp "
                              "phase, or the object not up when the hold starts or dropped during it; dgz eval and "
