@@ -17,7 +17,6 @@ the time limit or a MuJoCo instability (that slot alone is reset, and counted).
 from __future__ import annotations
 
 import copy
-
 import time
 from concurrent.futures import ThreadPoolExecutor
 
