@@ -1,9 +1,11 @@
-"""Copy a checkpoint with control-contract fields changed, to evaluate a trained policy under a contract it was
-not trained with (a probe before a fine-tune: does the lever help the policy as it is?). Only the manifest's
-``env.contract`` changes (validated by the contract's own model); the weights and the ``train`` record are
-copied as they are, so the copy is for ``dgz eval``, not for ``--resume``.
+"""Copy a checkpoint with control-contract fields (or, prefixed ``env.``, simulator EnvConfig fields) changed, to
+evaluate a trained policy under a contract or in an env it was not trained with (a probe before a fine-tune: does
+the lever help the policy as it is?). Only the manifest's ``env`` (with its ``contract``) changes, validated by
+EnvConfig and the contract's own model; the weights and the ``train`` record are copied as they are, so the copy
+is for ``dgz eval``, not for ``--resume``.
 
     .venv/bin/python tools/with_contract.py docs/results/e19_checkpoint runs/e19_stop05 guidance.stop_gap=0.05
+    .venv/bin/python tools/with_contract.py docs/results/e19_checkpoint runs/e19_lead4 env.wrist_max_lead=0.004
 """
 
 from __future__ import annotations
@@ -14,23 +16,23 @@ from pathlib import Path
 import yaml
 
 from dgz_cli.rl.checkpoint import load, save
-from dgz_cli.spec.contract import ControlContract
 
 
 def main(src: str, dst: str, assignments: list[str]) -> None:
     tensors, meta = load(Path(src))
-    dump = meta.env.contract.model_dump()
+    dump = meta.env.model_dump()
     for item in assignments:
         path, _, text = item.partition("=")
         *parents, field = path.split(".")
-        node = dump
-        for p in parents:
+        scope = "env" if parents[:1] == ["env"] else "contract"
+        node = dump if scope == "env" else dump["contract"]
+        for p in parents[1:] if scope == "env" else parents:
             node = node[p]
-        if field not in node:
-            raise SystemExit(f"{path}: no such contract field")
+        if field not in node or (scope == "env" and field == "contract"):
+            raise SystemExit(f"{path}: no such {scope} field")
         node[field] = yaml.safe_load(text)
-    contract = ControlContract.model_validate(dump)
-    meta = meta.model_copy(update=dict(env=meta.env.model_copy(update=dict(contract=contract))))
+    env = type(meta.env).model_validate(dump)
+    meta = meta.model_copy(update=dict(env=env))
     out = Path(dst)
     out.mkdir(parents=True, exist_ok=True)
     save(out, tensors, meta)
