@@ -17,7 +17,7 @@ def test_bench_train_reports_throughput_split_and_profile():
     assert res.exit_code == 0, res.output
     r = json.loads(res.stdout[res.stdout.index("{"):])
     assert r["envs"] == 2 and r["transitions"] == 2 * 4 * 1
-    assert r["transitions_per_s"] == pytest.approx(r["transitions"] / r["wall_s"], rel=0.05)  # wall_s is rounded
+    assert r["transitions_per_s"] == pytest.approx(r["transitions"] / r["wall_s"], rel=0.01)  # wall_s is rounded to 0.1 ms
     assert r["split_s"]["physics_s"] > 0 and r["split_s"]["ppo_update_s"] > 0 and min(r["split_s"].values()) >= 0
     assert 0.5 < sum(r["split_fraction"].values()) <= 1.01  # the four parts are most of the wall clock, never more
     mj = r["mujoco"]

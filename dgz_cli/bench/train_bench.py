@@ -73,7 +73,7 @@ def measure(trainer, iterations: int) -> dict:
     transitions = iterations * cfg.steps_per_env * env.B
     return dict(
         benchmark="train", hands=list(cfg.hands), objects=cfg.objects, envs=env.B, steps_per_env=cfg.steps_per_env,
-        iterations=iterations, transitions=transitions, wall_s=round(wall, 2),
+        iterations=iterations, transitions=transitions, wall_s=round(wall, 4),
         transitions_per_s=round(transitions / wall, 1),
         split_s=split, split_fraction={k: round(v / wall, 3) for k, v in split.items()},
         physics_dt=env.cfg.contract.episode.physics_dt, ppo_epochs=cfg.ppo.num_epochs,
