@@ -12,7 +12,7 @@ import torch
 
 from dgz_cli.cli.train_cmd import build
 from dgz_cli.rl.checkpoint import LoadedPolicy, read_meta
-from dgz_cli.rl.config import TrainConfig
+from dgz_cli.rl.config import TrainConfig, env_config
 
 SMOKE = dict(hands=("dgz_tri",), objects="sphere,box", repeat=2, steps_per_env=190, checkpoint_every=5, seed=0)
 
@@ -261,6 +261,10 @@ def test_run_config_file_sets_ppo_and_the_cli_overrides_it(tmp_path):
     conf.write_text("closing_prior: true\n")
     with pytest.raises(DgzError, match="run config: the closing prior reads the 'phase' block"):
         _load_config({}, conf, tmp_path / "out", resume=False)
+    # the aim shift's palm axes reach the contract the env and deploy read
+    conf.write_text("guidance_gain: 0.05\nguidance_aim_residual: 0.05\nguidance_aim_axes: [false, true, false]\n")
+    guidance = env_config(_load_config({}, conf, tmp_path / "out", resume=False)).contract.guidance
+    assert guidance.aim_residual == 0.05 and guidance.aim_axes == (False, True, False)
 
 
 def test_cli_defaults_come_from_the_config_model():

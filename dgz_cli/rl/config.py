@@ -77,6 +77,10 @@ class TrainConfig(BaseModel):
                                                 "translation action shifts the guidance's aim instead of moving the "
                                                 "wrist (contract guidance.aim_residual; needs guidance_gain > 0; "
                                                 "None = it is a velocity)")
+    guidance_aim_axes: tuple[bool, bool, bool] = Field((True, True, True), description="the palm axes (f, l, n) "
+                                                       "whose translation action is an aim shift under "
+                                                       "guidance_aim_residual; the others stay velocities (contract "
+                                                       "guidance.aim_axes)")
     roll: Literal["uniform", "narrow", "clear"] = Field("uniform", description="start roll: uniform, closing "
                                                         "across the object's narrowest width (narrow), or that "
                                                         "among the rolls whose hand clears the table (clear)")
@@ -178,7 +182,8 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
                                                    wrist_translation_residual=cfg.wrist_translation_residual),
                                episode=EpisodeProtocol(physics_dt=1.0 / cfg.physics_hz),
                                guidance=WristGuidance(gain=cfg.guidance_gain, stop_gap=cfg.guidance_stop_gap,
-                                                      aim_residual=cfg.guidance_aim_residual),
+                                                      aim_residual=cfg.guidance_aim_residual,
+                                                      aim_axes=cfg.guidance_aim_axes),
                                prior=ClosingPrior(enabled=cfg.closing_prior, close_step=cfg.prior_close_step,
                                                   close_guide=cfg.prior_close_guide),
                                start=StartPose(thumb_open=cfg.thumb_open, thumb_primitives=cfg.thumb_open_primitives))
