@@ -100,23 +100,25 @@ def test_deploy_on_sim_reproduces_eval_for_a_student(tmp_path):
 
 
 def test_deploy_on_sim_reproduces_eval_with_an_aim_residual(tmp_path):
-    """A checkpoint whose contract turns the wrist's translation action into a shift of the guidance's aim
-    (``guidance.aim_residual``): the runtime composes the wrist command as the simulator does, so the palm, and
-    with it every later observation and action, stays the same."""
+    """The shipped `dgz-cpu-aim`, whose contract turns the wrist's translation action into a shift of the
+    guidance's aim (``guidance.aim_residual``): the runtime composes the wrist command as the simulator does, so
+    the palm, and with it every later observation and action, stays the same."""
     from pathlib import Path
 
     from dgz_cli.rl.checkpoint import load, save
 
-    tensors, meta = load(Path(__file__).resolve().parents[1] / "policies" / "dgz-cpu-variants")
-    contract = meta.env.contract.model_copy(update=dict(
-        guidance=meta.env.contract.guidance.model_copy(update=dict(aim_residual=0.05))))
-    ControlContract.model_validate(contract.model_dump())
-    save(tmp_path / "aim", tensors, meta.model_copy(update=dict(env=meta.env.model_copy(update=dict(contract=contract)))))
-    policy = str(tmp_path / "aim")
-    expected, record = _eval_actions(policy)
-    got, header, end = _deploy_actions(policy, tmp_path)
+    tensors, meta = load(Path(__file__).resolve().parents[1] / "policies" / "dgz-cpu-aim")
+    assert meta.env.contract.guidance.aim_residual == 0.05
+    expected, record = _eval_actions("dgz-cpu-aim")
+    got, header, end = _deploy_actions("dgz-cpu-aim", tmp_path)
     assert header["contract"]["guidance"]["aim_residual"] == 0.05
     np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
     assert np.abs(expected[:120, :3]).max() > 0.05  # the policy's translation actions are not all zero
-    base, _ = _eval_actions("dgz-cpu-variants")
-    assert np.abs(base - expected).max() > 1e-3  # and the aim changes the episode: not a vacuous comparison
+    # the same weights with the translation as a wrist velocity instead: the aim changes the episode
+    contract = meta.env.contract.model_copy(update=dict(
+        guidance=meta.env.contract.guidance.model_copy(update=dict(aim_residual=None))))
+    ControlContract.model_validate(contract.model_dump())
+    save(tmp_path / "velocity", tensors,
+         meta.model_copy(update=dict(env=meta.env.model_copy(update=dict(contract=contract)))))
+    base, _ = _eval_actions(str(tmp_path / "velocity"))
+    assert np.abs(base - expected).max() > 1e-3
