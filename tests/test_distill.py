@@ -257,5 +257,6 @@ def test_the_shipped_student_is_deploys_default():
     default = inspect.signature(deploy).parameters["policy"].default.default
     meta = read_meta(resolve_checkpoint(default))
     assert default == "dgz-cpu-student" and meta.format == 3 and meta.privileged_inputs == ()
-    assert meta.student.teacher_path == "dgz-cpu-variants"
+    assert meta.student.teacher_path == "dgz-cpu-aim"
+    assert meta.contract.guidance.aim_residual == 0.05  # the teacher's aim shift reaches deploy with the student
     assert meta.contract.start.thumb_open == 0.5  # deploy ramps to the teacher's start pose
