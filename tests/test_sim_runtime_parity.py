@@ -103,11 +103,9 @@ def test_deploy_on_sim_reproduces_eval_with_an_aim_residual(tmp_path):
     """The shipped `dgz-cpu-aim`, whose contract turns the wrist's translation action into a shift of the
     guidance's aim (``guidance.aim_residual``): the runtime composes the wrist command as the simulator does, so
     the palm, and with it every later observation and action, stays the same."""
-    from pathlib import Path
+    from dgz_cli.rl.checkpoint import load, resolve_checkpoint, save
 
-    from dgz_cli.rl.checkpoint import load, save
-
-    tensors, meta = load(Path(__file__).resolve().parents[1] / "policies" / "dgz-cpu-aim")
+    tensors, meta = load(resolve_checkpoint("dgz-cpu-aim"))  # the folder `_eval_actions` and deploy resolve too
     assert meta.env.contract.guidance.aim_residual == 0.05
     expected, record = _eval_actions("dgz-cpu-aim")
     got, header, end = _deploy_actions("dgz-cpu-aim", tmp_path)
