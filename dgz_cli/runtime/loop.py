@@ -56,6 +56,7 @@ class RunConfig:
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     max_tracking_error: float = 1.0  # rad: |target − measured| above this ...
     tracking_steps: int = 10  # ... for this many reads in a row while moving is a fault
+    min_travel: float = 0.05  # rad: ... on a joint that has not moved this far from its first reading
 
 
 @dataclass
@@ -98,6 +99,7 @@ class Runner:
         self.kf = KalmanCV(cfg.contract.action.wrist_dim, 1.0 / self.rate_hz)
         self.res = RunResult()
         self._streak = self._stale = 0
+        self._q_first: np.ndarray | None = None  # the first finite reading, for the tracking check
         self._prev_fp = self._prev_written = None
         self._moving = False
 
@@ -134,8 +136,10 @@ class Runner:
             self._transient(exc)
 
     def _check_feedback(self, state) -> None:
-        """A non-finite reading, or a joint that does not follow its target (max |target − measured| above
-        ``max_tracking_error`` for ``tracking_steps`` reads in a row while moving), stops the run naming the joint."""
+        """A non-finite reading, or a joint that does not follow its target (|target − measured| above
+        ``max_tracking_error`` for ``tracking_steps`` reads in a row while moving, on a joint that has not moved
+        ``min_travel`` from its first reading), stops the run naming the joint. A finger that closed and is then
+        held by the object leads its target by as much as the contract lets it: that is the grasp, not a fault."""
         q = np.asarray(state.q, dtype=float).reshape(-1)
         names = [r.joint for r in self.spec.joints]
         bad = np.flatnonzero(~np.isfinite(q))
@@ -144,10 +148,13 @@ class Runner:
             raise HardwareError(f"{self.driver.port}: joint '{names[i] if i < len(names) else i}' reads {q[i]} "
                                 "(not a finite position)", "check the hand's wiring and firmware; the reading "
                                 "came from the device, not from the policy")
+        if self._q_first is None or self._q_first.shape != q.shape:
+            self._q_first = q.copy()
         if self.cfg.dry_run or self._prev_written is None or not self._moving or q.shape != self._prev_written.shape:
             self._tracking = 0
             return
         err = np.abs(self._prev_written - q)
+        err[np.abs(q - self._q_first) > self.cfg.min_travel] = 0.0
         self._tracking = getattr(self, "_tracking", 0) + 1 if float(err.max()) > self.cfg.max_tracking_error else 0
         if self._tracking >= self.cfg.tracking_steps:
             i = int(np.argmax(err))
