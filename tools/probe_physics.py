@@ -21,6 +21,7 @@ import dgz_cli.sim.scene as scene
 
 def _patch(change: str) -> None:
     key, _, value = change.partition("=")
+    factor = float(value) if value.replace(".", "", 1).isdigit() and float(value) > 0 else None
     if key == "condim" and value in {"1", "3", "4", "6"}:
         object_spec, condim = scene.object_spec, int(value)
 
@@ -32,15 +33,15 @@ def _patch(change: str) -> None:
             return s
 
         scene.object_spec = object_spec_with_condim
-    elif key == "effort" and value.replace(".", "", 1).isdigit() and float(value) > 0:
-        position_actuator, factor = scene._position_actuator, float(value)
+    elif key == "effort" and factor is not None:
+        position_actuator = scene._position_actuator
 
         def position_actuator_with_effort(world, joint, kp, effort):
             position_actuator(world, joint, kp, None if effort is None else effort * factor)
 
         scene._position_actuator = position_actuator_with_effort
-    elif key == "kp" and value.replace(".", "", 1).isdigit() and float(value) > 0:
-        position_actuator, factor = scene._position_actuator, float(value)
+    elif key == "kp" and factor is not None:
+        position_actuator = scene._position_actuator
 
         def position_actuator_with_kp(world, joint, kp, effort):
             finger = joint.startswith(scene.HAND_PREFIX)
