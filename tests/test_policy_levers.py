@@ -620,3 +620,28 @@ def test_dynamics_noise_scales_mass_friction_and_finger_force_per_episode_and_sl
     assert evaluated.cfg.dynamics_noise == 0.0 and evaluated.slots[0].model is evaluated.slots[1].model
     for env in (plain, noisy, evaluated):
         env.close()
+
+
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_a_scaled_finger_force_limit_is_the_force_the_joint_gets(factor):
+    """A finger driven far past an obstacle pushes with its force limit; set_dynamics' factor must reach the joint
+    both ways. (MuJoCo's URDF import also clamps a joint's summed actuator force at the URDF effort; kept, it
+    silently undid every factor above 1.)"""
+    import mujoco
+
+    box = resolve_objects("box")[0]
+    env = GraspEnv([(TRI, box)], EnvConfig(dynamics_noise=0.3), seed=0, threads=1)
+    slot = env.slots[0]
+    m, d = slot.model, slot.data
+    assert not m.jnt_actfrclimited[m.actuator_trnid[6:, 0]].any()  # one home: the actuator's forcerange
+    a = 6 + int(np.argmax(m.actuator_forcerange[6:, 1]))
+    effort = TRI.joints[a - 6].effort
+    assert effort and m.actuator_forcerange[a, 1] == pytest.approx(effort)
+    dof = m.jnt_dofadr[m.actuator_trnid[a, 0]]
+    for scale in (1.0, factor):
+        slot.set_dynamics(1.0, 1.0, scale)
+        mujoco.mj_resetData(m, d)
+        d.ctrl[a] = d.qpos[m.jnt_qposadr[m.actuator_trnid[a, 0]]] + 100.0  # a target the gain turns into > limit
+        mujoco.mj_forward(m, d)
+        assert abs(d.qfrc_actuator[dof]) == pytest.approx(scale * effort, rel=1e-6)
+    env.close()

@@ -7,7 +7,9 @@ parameter of every scene changed:
   the first). A contact takes the larger condim of its two geoms: this changes the object's contacts with the
   hand and with the table.
 - ``effort=K``: every finger actuator's force limit (the URDF's joint ``effort``, N·m or N) is multiplied by K;
-  joints without a limit stay unlimited.
+  joints without a limit stay unlimited. (Before session 37 the scene also kept the limit MuJoCo's URDF import
+  puts on each joint, ``actuatorfrcrange``, which this probe did not scale: its ``effort`` runs then changed
+  nothing. The scene now keeps the limit on the actuator only.)
 - ``kp=K``: every finger actuator's position gain (the env's ``finger_kp``, the same for every hand) is multiplied
   by K, with the damping ratio kept at 1.
 

@@ -152,6 +152,10 @@ def build_spec(spec: HandSpec, obj: ObjectModel, cfg: EnvConfig, asset_root: str
     for j in world.joints:
         if j.name.startswith(HAND_PREFIX):
             j.armature = max(j.armature, cfg.joint_armature)
+            # MuJoCo's URDF import also clamps the joint's summed actuator force at the URDF effort; the
+            # actuator's forcerange (the spec's effort, below) is the one home of that limit, so that scaling
+            # it (Slot.set_dynamics) acts in both directions
+            j.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
     for k, name in enumerate(WRIST_JOINTS):
         kp = cfg.wrist_kp_lin if k < 3 else cfg.wrist_kp_ang
         _position_actuator(world, name, kp, None)
