@@ -56,7 +56,7 @@ class RunConfig:
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     max_tracking_error: float = 1.0  # rad: |target − measured| above this ...
     tracking_steps: int = 10  # ... for this many reads in a row while moving is a fault
-    min_travel: float = 0.05  # rad: ... on a joint that has not moved this far from its first reading
+    min_travel: float = 0.05  # rad: ... on a joint that has not moved this far since the episode began
 
 
 @dataclass
@@ -99,7 +99,7 @@ class Runner:
         self.kf = KalmanCV(cfg.contract.action.wrist_dim, 1.0 / self.rate_hz)
         self.res = RunResult()
         self._streak = self._stale = 0
-        self._q_first: np.ndarray | None = None  # the first finite reading, for the tracking check
+        self._q_first: np.ndarray | None = None  # the first finite reading (of the run, then of the episode)
         self._prev_fp = self._prev_written = None
         self._moving = False
 
@@ -138,7 +138,7 @@ class Runner:
     def _check_feedback(self, state) -> None:
         """A non-finite reading, or a joint that does not follow its target (|target − measured| above
         ``max_tracking_error`` for ``tracking_steps`` reads in a row while moving, on a joint that has not moved
-        ``min_travel`` from its first reading), stops the run naming the joint. A finger that closed and is then
+        ``min_travel`` since the episode's first reading), stops the run naming the joint. A finger that closed and is then
         held by the object leads its target by as much as the contract lets it: that is the grasp, not a fault."""
         q = np.asarray(state.q, dtype=float).reshape(-1)
         names = [r.joint for r in self.spec.joints]
@@ -207,6 +207,7 @@ class Runner:
         cfg, safety, ep = self.cfg, self.safety, self.cfg.contract.episode
         last_action = np.zeros(self.action_dim)
         wrist = np.zeros(cfg.contract.action.wrist_dim)
+        self._q_first = None  # travel counts from the start pose: a joint the ramp moved may still jam
         for k in range(ep.episode_steps):
             if self.guard.stop_requested:
                 raise _StopRequested
