@@ -121,19 +121,6 @@ def test_a_finger_held_by_the_object_is_not_a_tracking_fault(spec):
     assert max(abs(w[i] - driver.q[i]) for w in driver.writes) > 0.2  # the target did lead the held joint
 
 
-class JamAtHand(MemoryHand):
-    """A hand whose joint ``index`` follows its targets but cannot pass ``ceiling`` in the +``direction``."""
-
-    def __init__(self, spec, index: int, ceiling: float, direction: float) -> None:
-        super().__init__(spec)
-        self.index, self.ceiling, self.direction = index, ceiling, direction
-
-    def write_targets(self, q) -> None:
-        super().write_targets(q)
-        i = self.index
-        self.q[i] = self.ceiling + self.direction * min(0.0, self.direction * (self.q[i] - self.ceiling))
-
-
 def test_a_joint_that_the_ramp_moved_and_that_then_jams_is_a_tracking_fault(spec):
     """Travel counts from the episode's start: the ramp moves the joint 0.3 rad to the start pose, where it jams
     while the policy closes on; that is a fault, not a finger held by the object."""
@@ -143,8 +130,9 @@ def test_a_joint_that_the_ramp_moved_and_that_then_jams_is_a_tracking_fault(spec
     _run(probe, spec)
     direction = float(np.sign(probe.q[i] - spec.rest_pose()[i]))
     start = spec.rest_pose().astype(float)
-    start[i] += direction * min(0.3, 0.5 * abs(probe.q[i] - start[i]))
-    driver = JamAtHand(spec, i, start[i], direction)
+    travel = min(0.3, 0.5 * abs(probe.q[i] - start[i]))
+    start[i] += direction * travel
+    driver = ObjectHand(spec, joint, travel=travel)  # stops where the ramp leaves it: jammed at the start pose
     with driver:
         res = Runner(driver, spec, ClosePolicy(spec, CONTRACT), RunConfig(contract=CONTRACT, max_tracking_error=0.05,
                      tracking_steps=3), sleep=lambda s: None).run(start_pose=start)
