@@ -303,8 +303,8 @@ def test_table_shows_the_paper_and_the_scripted_baseline(tmp_path):
     from dgz_cli.cli.eval_table import PAPER_TABLE_I
 
     ours = _report(tmp_path / "full.json", "runs/full", ["allegro", "shadow", "ability", "schunk_svh"],
-                   {"allegro": 0.5, "shadow": 0.25, "ability": 0.75, "schunk_svh": 0.5, "leap": 0.125})
-    base = _report(tmp_path / "base.json", "scripted", [], {"allegro": 0.25, "leap": 0.5, "inspire": 0.5})
+                   {"allegro": 0.5, "shadow": 0.25, "ability": 0.75, "schunk_svh": 1.0, "leap": 0.125})
+    base = _report(tmp_path / "base.json", "scripted", [], {"allegro": 0.25, "leap": 0.5, "inspire": 0.25})
     text = _table([ours, base])
     lines = text.splitlines()
     full = next(line for line in lines if "paper: DexGrasp-Zero (full model)" in line)
@@ -315,9 +315,24 @@ def test_table_shows_the_paper_and_the_scripted_baseline(tmp_path):
     assert header.index("allegro") < header.index("shadow") < header.index("ability") < header.index("schunk_svh") \
         < header.index("leap (unseen)") < header.index("inspire (unseen)")  # the paper's column order
     mine = next(line for line in lines if "full (runs/full)" in line)
-    assert re.findall(r"\d\.\d+", mine) == ["0.50", "0.25", "0.75", "0.50", "0.12", "0.500", "0.125"]
-    assert "base (scripted baseline)" in text
+    # the averages are over the hands both files have (allegro; leap), not each file's own (0.625; 0.375)
+    assert re.findall(r"\d\.\d+", mine) == ["0.50", "0.25", "0.75", "1.00", "0.12", "0.500", "0.125"]
+    scripted = next(line for line in lines if "base (scripted baseline)" in line)
+    assert re.findall(r"\d\.\d+", scripted) == ["0.25", "0.50", "0.25", "0.250", "0.500"]
+    assert "averages are over the hands every file has: seen allegro; unseen leap" in text
     assert "paper:" not in _table([ours, base], paper=False)
+
+
+def test_table_averages_every_hand_when_the_files_agree(tmp_path):
+    rates = {"allegro": 0.5, "shadow": 0.25, "leap": 0.75, "inspire": 0.25}
+    a = _report(tmp_path / "a.json", "runs/a", ["allegro", "shadow"], rates)
+    b = _report(tmp_path / "b.json", "scripted", [], {h: r / 2 for h, r in rates.items()})
+    text = _table([a, b], paper=False)
+    assert "every file has" not in text
+    row_a = next(line for line in text.splitlines() if "a (runs/a)" in line)
+    row_b = next(line for line in text.splitlines() if "b (scripted baseline)" in line)
+    assert re.findall(r"\d\.\d+", row_a)[-2:] == ["0.375", "0.500"]
+    assert re.findall(r"\d\.\d+", row_b)[-2:] == ["0.188", "0.250"]
 
 
 def test_table_paper_rows_only_with_the_papers_hands(tmp_path):

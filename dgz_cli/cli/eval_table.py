@@ -121,7 +121,9 @@ def render_table(files: list[Path], console, paper: bool | None = None) -> int:
     """Print Table I from `dgz eval --json` files (``console``: a rich Console): one row per file, columns
     training hands | unseen hands | seen and unseen averages. The split is the files' own (a hand is a
     training column when any file's policy trained on it), or the paper's when only baselines (no training
-    hands) are given. A `--policy scripted` file is labelled the scripted baseline.
+    hands) are given. A `--policy scripted` file is labelled the scripted baseline. Every row's averages are
+    over the same hands, those that every file has (a note names them when a file has more), so that the
+    rows compare.
 
     ``paper``: also print the paper's Table I rows (:data:`PAPER_TABLE_I`, quoted) above ours, with its
     hands as columns; None = when any file has one of the paper's hands. A note names any hand whose split
@@ -160,17 +162,24 @@ def render_table(files: list[Path], console, paper: bool | None = None) -> int:
         t.add_section()
         t.caption = escape(f"paper rows: {PAPER_TABLE_NAME}, quoted as printed (its averages over its "
                            "4 training / 2 unseen hands); — = not in that table")
+    seen_avg_cols = [h for h in seen_cols if all(h in hs for *_, hs in rows)]
+    unseen_avg_cols = [h for h in unseen_cols if all(h in hs for *_, hs in rows)]
     for name, policy, _, hs in rows:
         def avg(group: list[str]) -> str:
-            have = [hs[h]["success_rate"] for h in group if h in hs]
-            return f"{sum(have) / len(have):.3f}" if have else "—"
+            return f"{sum(hs[h]['success_rate'] for h in group) / len(group):.3f}" if group else "—"
 
         label = f"{name} (scripted baseline)" if policy == "scripted" else f"{name} ({policy})"
         cells = [f"{hs[h]['success_rate']:.2f}" if h in hs else "—" for h in cols]
-        t.add_row(escape(label), *cells, avg(seen_cols), avg(unseen_cols))
+        t.add_row(escape(label), *cells, avg(seen_avg_cols), avg(unseen_avg_cols))
     labels = [len(f"{n} ({p})") + 20 for n, p, *_ in rows] + [60]
     wide = Console(file=console.file, emoji=False, width=max(console.width, max(labels) + 20 * (len(cols) + 2)))
     wide.print(t)
+    if set(seen_avg_cols + unseen_avg_cols) != present:
+        def named(group: list[str]) -> str:
+            return ", ".join(group) if group else "none"
+
+        wide.print(escape(f"note: our averages are over the hands every file has: seen {named(seen_avg_cols)}; "
+                          f"unseen {named(unseen_avg_cols)}"), highlight=False)
     if show_paper:
         differ = [f"{h} (ours: {'train' if h in trained else 'unseen'}, paper: "
                   f"{'train' if h in PAPER_TRAINING_HANDS else 'unseen'})"
