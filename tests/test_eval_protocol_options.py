@@ -506,6 +506,44 @@ def test_eval_settle_is_a_start_state_option_recorded_in_the_protocol(tmp_path):
     assert json.loads(js.read_text())["protocol"]["settle_s"] == 1.5
 
 
+def test_upright_objects_keep_their_model_frame_up_and_only_the_yaw_varies(tri):
+    """object_orientation 'upright' (GraspXL's and RobustDexGrasp's placement): the object starts in its model's
+    frame, z up, turned about the vertical by a random yaw; 'random' (the default) tilts it anywhere."""
+    from dgz_cli.sim.env import GraspEnv
+
+    box = resolve_objects("box")[0]
+    tilt = {}
+    for orientation in ("random", "upright"):
+        env = GraspEnv([(tri, box)] * 6, EnvConfig(object_orientation=orientation), seed=5, threads=1)
+        env.reset(1)
+        rot = env.state()["obj_rot"]
+        tilt[orientation] = rot[:, 2, 2]  # cosine between the object's z axis and world z
+        yaw = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+    np.testing.assert_allclose(tilt["upright"], 1.0, atol=1e-3)  # a flat box stays flat on the table
+    assert np.ptp(yaw) > 0.5  # ... at different yaws
+    assert (tilt["random"] < 0.99).sum() >= 3  # dropped anyhow, most boxes land on another face
+    assert EnvConfig().object_orientation == "random"
+
+
+def test_eval_object_orientation_is_a_start_state_option_for_checkpoints_too(tmp_path):
+    """`--object-orientation` is recorded in the protocol, changes the episodes, and applies to a checkpoint."""
+    rows, recorded = {}, {}
+    for extra in ((), ("--object-orientation", "upright")):
+        js, csv = tmp_path / f"{len(extra)}.json", tmp_path / f"{len(extra)}.csv"
+        res = _dgz("eval", "--hand", "dgz_tri", "--objects", "box", "--trials", "2", *extra, "--json", str(js),
+                   "--csv", str(csv), cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        recorded[extra] = json.loads(js.read_text())["protocol"]["object_orientation"]
+        rows[extra] = csv.read_text().splitlines()[1:]
+    assert recorded == {(): "random", ("--object-orientation", "upright"): "upright"}
+    assert rows[()] != rows[("--object-orientation", "upright")]
+    js = tmp_path / "ckpt.json"
+    res = _dgz("eval", "--policy", "dgz-cpu-thumb-open", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1",
+               "--object-orientation", "upright", "--json", str(js), cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(js.read_text())["protocol"]["object_orientation"] == "upright"
+
+
 @pytest.mark.parametrize("args,message", [
     (("--settle", "-1"), "--settle"),
     (("--settle", "nan"), "--settle"),
@@ -524,6 +562,7 @@ def test_eval_settle_is_a_start_state_option_recorded_in_the_protocol(tmp_path):
     (("--thumb-open", "-1"), "--thumb-open"),
     (("--policy", "dgz-cpu-residual", "--thumb-open", "1"), "--thumb-open"),
     (("--roll", "sideways"), "--roll"),
+    (("--object-orientation", "sideways"), "--object-orientation"),
     (("--guidance-stop-gap", "0.05"), "--guidance-stop-gap"),  # without --guidance there is nothing to stop
     (("--guidance", "0.05", "--guidance-stop-gap", "0"), "--guidance-stop-gap"),
     (("--guidance", "0.05", "--guidance-stop-gap", "0.4"), "--guidance-stop-gap"),

@@ -508,6 +508,19 @@ def test_training_settle_reaches_the_env_config():
             EnvConfig(settle_s=bad)
 
 
+def test_object_orientation_is_a_run_option():
+    """object_orientation (issue 11: GraspXL's upright placement) reaches the env from a run's config; the
+    default stays random, so older checkpoints (which lack the field) keep their start states."""
+    from pydantic import ValidationError
+
+    from dgz_cli.rl.config import TrainConfig, env_config
+
+    assert env_config(TrainConfig()).object_orientation == EnvConfig().object_orientation == "random"
+    assert env_config(TrainConfig(object_orientation="upright")).object_orientation == "upright"
+    with pytest.raises(ValidationError, match="object_orientation"):
+        TrainConfig(object_orientation="sideways")
+
+
 def test_pick_roll_by_hand():
     widths = np.array([0.05, 0.08, 0.06, 0.09])
     assert pick_roll(widths) == 0                                               # narrow: the narrowest

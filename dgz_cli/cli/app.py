@@ -270,6 +270,10 @@ def evaluate(
     settle: Optional[float] = typer.Option(None, "--settle", help="start state: seconds (0 to 10) the dropped "
                                            "object settles on the table before the episode's first frame "
                                            "(default: the checkpoint's own; 0.3 for scripted)"),
+    object_orientation: Optional[str] = typer.Option(None, "--object-orientation", help="start state: random (the "
+                                                     "object dropped in any orientation) or upright (in its model's "
+                                                     "frame, z up, with a random yaw; GraspXL's and RobustDexGrasp's "
+                                                     "placement) (default: the checkpoint's own; random for scripted)"),
     asset_root: Optional[str] = typer.Option(None, "--asset-root", help=ASSET_HELP),
 ) -> None:
     """Success rate per hand and object under the protocol (lift, hold), with both cores; the closing onset
@@ -295,13 +299,16 @@ def evaluate(
 
     if settle is not None and not (math.isfinite(settle) and 0.0 <= settle <= MAX_SETTLE_S):
         raise DgzError(f"--settle {settle}: must be in [0, {MAX_SETTLE_S:g}] s", "e.g. --settle 2 (the default is 0.3)")
+    if object_orientation is not None and object_orientation not in ("random", "upright"):
+        raise DgzError(f"--object-orientation {object_orientation!r} is not supported",
+                       "use --object-orientation random or upright")
     hands = [h for item in hand for h in item.split(",") if h]
     raise typer.Exit(sim_cmd.evaluate(policy, hands, objects, trials, seed, zero_shot, json_out, csv_out,
                                       asset_root, out, guidance=guidance, guidance_stop_gap=guidance_stop_gap,
                                       roll=roll, video=video,
                                       video_episodes=video_episodes, perturb=perturb, feature_scale=feature_scale,
                                       approach_cone=approach_cone, physics_hz=physics_hz, thumb_open=thumb_open,
-                                      settle=settle))
+                                      settle=settle, object_orientation=object_orientation))
 
 
 @assets_app.command("fetch")

@@ -37,7 +37,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
              guidance: float = 0.0, guidance_stop_gap: float | None = None, roll: str | None = None,
              video: Path | None = None, video_episodes: int = 2,
              perturb: bool = True, feature_scale: float = 1.0, approach_cone: float | None = None,
-             physics_hz: float | None = None, thumb_open: float | None = None, settle: float | None = None) -> int:
+             physics_hz: float | None = None, thumb_open: float | None = None, settle: float | None = None,
+             object_orientation: str | None = None) -> int:
     from dgz_cli.cli.hand_refs import hand_specs
     from dgz_cli.sim.evaluate import CSV_COLUMNS, csv_row, hand_reports, run_episodes, summarize
     from dgz_cli.sim.objects import resolve_objects
@@ -107,6 +108,8 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
         cfg = cfg.model_copy(update=dict(roll=roll))
     if settle is not None:  # and how long the object settles before the first frame
         cfg = cfg.model_copy(update=dict(settle_s=settle))
+    if object_orientation is not None:  # and how the object is dropped
+        cfg = cfg.model_copy(update=dict(object_orientation=object_orientation))
     if meta is not None:
         from dgz_cli.rl.checkpoint import spec_hash
 
@@ -141,7 +144,7 @@ def evaluate(policy: str, hands: list[str], objects: str, trials: int, seed: int
                     physics_hz=round(1.0 / ep.physics_dt, 6),
                     hardware_view=None if view is None else view.model_dump(), feature_scale=feature_scale,
                     approach_distance_m=cfg.approach_distance, approach_cone_rad=cfg.approach_cone,
-                    settle_s=cfg.settle_s,
+                    settle_s=cfg.settle_s, object_orientation=cfg.object_orientation,
                     thumb_open=cfg.contract.start.thumb_open,
                     thumb_open_primitives=list(cfg.contract.start.thumb_primitives))
     table = Table(title=f"{escape(policy)} — success = object lifted {ep.lift_height} m (≥ {ep.success_fraction:.0%} "

@@ -122,6 +122,9 @@ class TrainConfig(BaseModel):
                                   "[e^-r, e^r] (training only; env dynamics_noise; 0 = off)")
     settle_s: float = Field(0.3, ge=0, le=MAX_SETTLE_S, description="s the object settles on the table before each episode's "
                             "first frame (env settle_s; dgz eval --settle sets it for evaluation)")
+    object_orientation: Literal["random", "upright"] = Field("random", description="the object's orientation when "
+                                                             "dropped: random (all rotations) or upright (its model's "
+                                                             "frame, uniform yaw; env object_orientation)")
     physics_hz: float = Field(400.0, ge=20, le=2000, description="physics rate of the training env (the paper: 400; "
                               "200 halves the physics cost)")
     thumb_open: float = Field(0.0, ge=0, le=1, description="start pose: the thumb's opening joints this fraction of "
@@ -190,4 +193,4 @@ def env_config(cfg: TrainConfig) -> EnvConfig:
     return EnvConfig(contract=contract, reward=RewardWeights(lift=cfg.lift_weight), reward_variant=cfg.reward,
                      graspxl=GraspXLReward(residual=cfg.residual_weight, displace=cfg.displace_weight),
                      roll=cfg.roll, early_stop=cfg.early_stop, target_noise=cfg.target_noise, settle_s=cfg.settle_s,
-                     dynamics_noise=cfg.dynamics_noise)
+                     object_orientation=cfg.object_orientation, dynamics_noise=cfg.dynamics_noise)

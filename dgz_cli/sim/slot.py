@@ -19,8 +19,15 @@ def _mat_to_quat(r: np.ndarray) -> np.ndarray:
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """(3, 3) rotation drawn uniformly over all rotations."""
     q = rng.normal(size=4)
     return quat_to_mat(q / np.linalg.norm(q))
+
+
+def random_yaw(rng: np.random.Generator) -> np.ndarray:
+    """(3, 3) rotation about world z by a uniform angle: the model's own up axis stays up."""
+    c, s = np.cos(a := 2 * np.pi * rng.random()), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 # Where the wrist waits (m, world frame) while the object settles on the table: far above anything it could touch.
@@ -90,7 +97,7 @@ class Slot:
         mj, m, d, idx, cfg = self.mj, self.model, self.data, self.idx, self.cfg
         mj.mj_resetData(m, d)
         d.qpos[idx.wrist_qadr[:3]] = PARKED_WRIST_XYZ
-        rot = random_rotation(rng)
+        rot = random_yaw(rng) if cfg.object_orientation == "upright" else random_rotation(rng)
         lowest = (idx.cloud @ rot.T)[:, 2].min()
         d.qpos[idx.object_qadr:idx.object_qadr + 3] = [0.0, 0.0, -lowest + 0.002]
         d.qpos[idx.object_qadr + 3:idx.object_qadr + 7] = _mat_to_quat(rot)

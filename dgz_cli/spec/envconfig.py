@@ -67,6 +67,10 @@ class EnvConfig(_Frozen):
     approach_cone: float = Field(0.5, ge=0, description="max tilt (rad) of the approach direction from vertical")
     settle_s: float = Field(0.3, ge=0, le=MAX_SETTLE_S,
                             description="s the object settles on the table before the episode starts")
+    object_orientation: Literal["random", "upright"] = Field(
+        "random", description="the object's orientation when it is dropped: random, uniform over all rotations; "
+                              "upright, the model's own frame (z up, as the YCB scans stand) turned by a uniform yaw "
+                              "about the vertical, as GraspXL's and RobustDexGrasp's code place their objects")
     finger_kp: float = Field(3.0, gt=0, description="N·m/rad, the same for every hand")
     joint_armature: float = Field(0.001, ge=0, description="kg·m², added to every hand joint (motor inertia)")
     wrist_max_lead: float = Field(0.01, gt=0, description="wrist targets stay within this (m, rad) of the wrist joints")
