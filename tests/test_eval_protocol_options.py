@@ -485,25 +485,37 @@ def test_eval_roll_is_a_start_state_option_for_checkpoints_too(tmp_path):
     assert rolls == {(): "narrow", ("--roll", "clear"): "clear"}
 
 
-def test_eval_settle_is_a_start_state_option_recorded_in_the_protocol(tmp_path):
-    """`--settle` (issue 12: the held first frame must show an object at rest) sets how long the dropped object
-    settles before the first frame, for checkpoints too: recorded, and a box dropped in a random orientation
-    starts elsewhere after 2 s than after the default 0.3 s, so the trajectories differ."""
-    rows, settles = {}, {}
-    for extra in ((), ("--settle", "2")):
+def _scripted_box_runs(tmp_path: Path, option: tuple[str, ...], field: str) -> tuple[dict, dict]:
+    """Scripted `dgz eval` on dgz_tri × box (2 trials) without and with ``option``: per run (keyed by the extra
+    arguments), the JSON protocol's ``field`` and the CSV's episode rows."""
+    recorded, rows = {}, {}
+    for extra in ((), option):
         js, csv = tmp_path / f"{len(extra)}.json", tmp_path / f"{len(extra)}.csv"
         res = _dgz("eval", "--hand", "dgz_tri", "--objects", "box", "--trials", "2", *extra, "--json", str(js),
                    "--csv", str(csv), cwd=tmp_path)
         assert res.returncode == 0, res.stderr
-        settles[extra] = json.loads(js.read_text())["protocol"]["settle_s"]
+        recorded[extra] = json.loads(js.read_text())["protocol"][field]
         rows[extra] = csv.read_text().splitlines()[1:]
-    assert settles == {(): 0.3, ("--settle", "2"): 2.0}
-    assert rows[()] != rows[("--settle", "2")]
+    return recorded, rows
+
+
+def _checkpoint_protocol(tmp_path: Path, option: tuple[str, ...], field: str):
+    """The JSON protocol's ``field`` of one `dgz-cpu-thumb-open` episode on dgz_tri × sphere run with ``option``."""
     js = tmp_path / "ckpt.json"
     res = _dgz("eval", "--policy", "dgz-cpu-thumb-open", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1",
-               "--settle", "1.5", "--json", str(js), cwd=tmp_path)
+               *option, "--json", str(js), cwd=tmp_path)
     assert res.returncode == 0, res.stderr
-    assert json.loads(js.read_text())["protocol"]["settle_s"] == 1.5
+    return json.loads(js.read_text())["protocol"][field]
+
+
+def test_eval_settle_is_a_start_state_option_recorded_in_the_protocol(tmp_path):
+    """`--settle` (issue 12: the held first frame must show an object at rest) sets how long the dropped object
+    settles before the first frame, for checkpoints too: recorded, and a box dropped in a random orientation
+    starts elsewhere after 2 s than after the default 0.3 s, so the trajectories differ."""
+    settles, rows = _scripted_box_runs(tmp_path, ("--settle", "2"), "settle_s")
+    assert settles == {(): 0.3, ("--settle", "2"): 2.0}
+    assert rows[()] != rows[("--settle", "2")]
+    assert _checkpoint_protocol(tmp_path, ("--settle", "1.5"), "settle_s") == 1.5
 
 
 def test_upright_objects_keep_their_model_frame_up_and_only_the_yaw_varies(tri):
@@ -512,36 +524,25 @@ def test_upright_objects_keep_their_model_frame_up_and_only_the_yaw_varies(tri):
     from dgz_cli.sim.env import GraspEnv
 
     box = resolve_objects("box")[0]
-    tilt = {}
+    rot = {}
     for orientation in ("random", "upright"):
         env = GraspEnv([(tri, box)] * 6, EnvConfig(object_orientation=orientation), seed=5, threads=1)
         env.reset(1)
-        rot = env.state()["obj_rot"]
-        tilt[orientation] = rot[:, 2, 2]  # cosine between the object's z axis and world z
-        yaw = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+        rot[orientation] = env.state()["obj_rot"]
+    tilt = {k: r[:, 2, 2] for k, r in rot.items()}  # cosine between the object's z axis and world z
     np.testing.assert_allclose(tilt["upright"], 1.0, atol=1e-3)  # a flat box stays flat on the table
-    assert np.ptp(yaw) > 0.5  # ... at different yaws
+    assert np.ptp(np.arctan2(rot["upright"][:, 1, 0], rot["upright"][:, 0, 0])) > 0.5  # ... at different yaws
     assert (tilt["random"] < 0.99).sum() >= 3  # dropped anyhow, most boxes land on another face
     assert EnvConfig().object_orientation == "random"
 
 
 def test_eval_object_orientation_is_a_start_state_option_for_checkpoints_too(tmp_path):
     """`--object-orientation` is recorded in the protocol, changes the episodes, and applies to a checkpoint."""
-    rows, recorded = {}, {}
-    for extra in ((), ("--object-orientation", "upright")):
-        js, csv = tmp_path / f"{len(extra)}.json", tmp_path / f"{len(extra)}.csv"
-        res = _dgz("eval", "--hand", "dgz_tri", "--objects", "box", "--trials", "2", *extra, "--json", str(js),
-                   "--csv", str(csv), cwd=tmp_path)
-        assert res.returncode == 0, res.stderr
-        recorded[extra] = json.loads(js.read_text())["protocol"]["object_orientation"]
-        rows[extra] = csv.read_text().splitlines()[1:]
-    assert recorded == {(): "random", ("--object-orientation", "upright"): "upright"}
-    assert rows[()] != rows[("--object-orientation", "upright")]
-    js = tmp_path / "ckpt.json"
-    res = _dgz("eval", "--policy", "dgz-cpu-thumb-open", "--hand", "dgz_tri", "--objects", "sphere", "--trials", "1",
-               "--object-orientation", "upright", "--json", str(js), cwd=tmp_path)
-    assert res.returncode == 0, res.stderr
-    assert json.loads(js.read_text())["protocol"]["object_orientation"] == "upright"
+    upright = ("--object-orientation", "upright")
+    recorded, rows = _scripted_box_runs(tmp_path, upright, "object_orientation")
+    assert recorded == {(): "random", upright: "upright"}
+    assert rows[()] != rows[upright]
+    assert _checkpoint_protocol(tmp_path, upright, "object_orientation") == "upright"
 
 
 @pytest.mark.parametrize("args,message", [
