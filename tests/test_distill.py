@@ -157,7 +157,11 @@ def test_options_map_to_fields_and_bad_values_name_the_option(tmp_path):
     cfg = _load_config(dict(teacher=TEACHER, steps=33, settle=1.5, joint_noise=0.02, history=12), tmp_path / "x",
                        False)
     assert (cfg.steps_per_env, cfg.settle_s, cfg.view.joint_noise, cfg.student.history) == (33, 1.5, 0.02, 12)
-    assert _load_config(dict(teacher=TEACHER), tmp_path / "x", False).student.history == 5  # the paper's
+    default = _load_config(dict(teacher=TEACHER), tmp_path / "x", False)
+    assert default.student.history == 5 and default.teacher_view == "sim"  # the paper's; the teacher sees the sim
+    assert _load_config(dict(teacher=TEACHER, teacher_view="student"), tmp_path / "x", False).teacher_view == "student"
+    with pytest.raises(DgzError, match="^--teacher-view: "):
+        _load_config(dict(teacher=TEACHER, teacher_view="camera"), tmp_path / "x", False)
     with pytest.raises(DgzError, match="^--history: "):
         _load_config(dict(teacher=TEACHER, history=0), tmp_path / "x", False)
     with pytest.raises(DgzError, match="^--settle: "):
@@ -247,6 +251,47 @@ def test_hardware_view_env_gives_the_teacher_its_observation_and_the_student_har
         e.close()
 
 
+def test_a_teacher_can_label_from_the_students_view_plus_its_privileged_inputs():
+    """teacher_sees_view (dgz distill --teacher-view student): the teacher's observation is the student's
+    perturbed one (held cloud, noisy joints) in the teacher's layout, with the simulator's contact and force."""
+    from dgz_cli.rl.checkpoint import read_meta, resolve_checkpoint
+    from dgz_cli.sim.hardware import HardwareViewEnv
+    from dgz_cli.sim.objects import resolve_objects
+    from dgz_cli.spec.hardware_view import HardwareView, student_contract
+
+    tcfg = read_meta(resolve_checkpoint(TEACHER)).env
+    scfg = tcfg.model_copy(update=dict(contract=student_contract(tcfg.contract)))
+    pairs = [(TRI, o) for o in resolve_objects("sphere,box")]
+    view = HardwareView(joint_noise=0.01, held_cloud=True)
+    envs = [HardwareViewEnv(pairs, scfg, view, teacher_layout=tcfg.contract.observation, teacher_sees_view=sees,
+                            threads=1) for sees in (False, True)]
+    tl, sl = tcfg.contract.observation, scfg.contract.observation
+    from dgz_cli.sim.scripted import ScriptedGrasp
+
+    script = ScriptedGrasp.for_env(envs[0])  # it grasps, so the contact blocks are not all zero
+    obs = [e.reset(0) for e in envs]
+    touched = False
+    for _ in range(80):
+        a = script.act(obs[0])
+        obs = [e.step(a)[0] for e in envs]
+        for name, _ in sl.node:  # every student block: the student's own observation
+            np.testing.assert_array_equal(envs[1].teacher_obs["nodes"][..., tl.node_col(name)],
+                                          obs[1]["nodes"][..., sl.node_col(name)])
+        for name, _ in sl.global_:
+            np.testing.assert_array_equal(envs[1].teacher_obs["global"][:, tl.global_col(name)],
+                                          obs[1]["global"][:, sl.global_col(name)])
+        for name in ("contact", "force"):  # the privileged blocks: the simulator's, as the sim-view teacher gets
+            np.testing.assert_array_equal(envs[1].teacher_obs["nodes"][..., tl.node_col(name)],
+                                          envs[0].teacher_obs["nodes"][..., tl.node_col(name)])
+        touched |= bool(envs[1].teacher_obs["nodes"][..., tl.node_col("contact")].any())
+    np.testing.assert_array_equal(obs[0]["nodes"], obs[1]["nodes"])  # the student's observation is unchanged
+    theta = tl.node_col("theta")
+    assert np.abs(envs[1].teacher_obs["nodes"][..., theta] - envs[0].teacher_obs["nodes"][..., theta]).max() > 1e-4
+    assert touched
+    for e in envs:
+        e.close()
+
+
 def test_the_shipped_student_is_deploys_default():
     """`dgz deploy`'s --policy default is the shipped student, which declares no privileged input."""
     import inspect
@@ -257,6 +302,6 @@ def test_the_shipped_student_is_deploys_default():
     default = inspect.signature(deploy).parameters["policy"].default.default
     meta = read_meta(resolve_checkpoint(default))
     assert default == "dgz-cpu-student" and meta.format == 3 and meta.privileged_inputs == ()
-    assert meta.student.teacher_path == "dgz-cpu-aim"
+    assert meta.student.teacher_path == "dgz-cpu-held" and meta.student.distill.teacher_view == "student"
     assert meta.contract.guidance.aim_residual == 0.05  # the teacher's aim shift reaches deploy with the student
     assert meta.contract.start.thumb_open == 0.5  # deploy ramps to the teacher's start pose

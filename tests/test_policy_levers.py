@@ -521,6 +521,41 @@ def test_object_orientation_is_a_run_option():
         TrainConfig(object_orientation="sideways")
 
 
+def test_train_view_trains_on_the_held_cloud_with_the_privileged_inputs(tmp_path):
+    """train_view (issue 12): the training env observes the object as hardware gives it (the first frame's
+    cloud held, object velocities 0) and keeps the teacher's contact and force blocks; the option is recorded in
+    the checkpoint and is off by default. Moving the object after the first frame moves the sim's target and not
+    the held one."""
+    from dgz_cli.cli.train_cmd import build
+    from dgz_cli.rl.checkpoint import read_meta
+    from dgz_cli.rl.config import TrainConfig
+    from dgz_cli.sim.hardware import HardwareViewEnv
+    from dgz_cli.spec.hardware_view import HardwareView
+
+    view = HardwareView(held_cloud=True)
+    run = dict(hands=("dgz_tri",), objects="box", repeat=1, steps_per_env=4, iterations=1, seed=0)
+    plain, held = (build(TrainConfig(train_view=v, **run), tmp_path / name, None)
+                   for v, name in ((None, "plain"), (view, "held")))
+    assert type(plain.env) is GraspEnv and isinstance(held.env, HardwareViewEnv) and held.env.view == view
+    lay = held.env.cfg.contract.observation
+    assert lay.has("contact") and lay.has("force") and held.env.cfg == plain.env.cfg
+    first = [t.env.reset(0) for t in (plain, held)]
+    target, v_obj = lay.global_col("target"), lay.global_col("v_obj")
+    np.testing.assert_allclose(first[1]["global"][:, target], first[0]["global"][:, target], atol=1e-6)
+    for t in (plain, held):  # the object is moved 6 cm along world x after the first frame
+        s = t.env.slots[0]
+        s.data.qpos[s.idx.object_qadr] += 0.06
+    obs = [t.env.step(np.zeros((1, t.env.action_dim)))[0] for t in (plain, held)]
+    moved = np.linalg.norm((obs[0]["global"][0, target] - obs[1]["global"][0, target]) * lay.target_scale)
+    assert 0.05 < moved < 0.07, moved  # the sim's target followed the object, the held one did not
+    assert np.all(obs[1]["global"][:, v_obj] == 0) and np.abs(obs[0]["global"][:, v_obj]).max() > 0
+    held.train()
+    assert read_meta(tmp_path / "held").train.train_view == view
+    assert TrainConfig().train_view is None
+    for t in (plain, held):
+        t.env.close()
+
+
 def test_pick_roll_by_hand():
     widths = np.array([0.05, 0.08, 0.06, 0.09])
     assert pick_roll(widths) == 0                                               # narrow: the narrowest

@@ -207,7 +207,7 @@ def test_train_bad_options(tmp_path, args, message):
 
 
 _REAL_TRAINING_HANDS = {"allegro", "shadow", "schunk_svh", "ability"}
-# dgz-cpu-variants and dgz-cpu-aim also trained on one generated variant of each real hand (`dgz hands generate --variants-of`)
+# dgz-cpu-variants, dgz-cpu-aim and dgz-cpu-held also trained on one generated variant of each real hand (`dgz hands generate --variants-of`)
 _E19_VARIANTS = {"allegro_v19_0000", "shadow_v20_0000", "schunk_svh_v21_0000", "ability_v22_0000"}
 
 
@@ -216,6 +216,7 @@ _E19_VARIANTS = {"allegro_v19_0000", "shadow_v20_0000", "schunk_svh_v21_0000", "
                                           "dgz-cpu-residual-nocap", "dgz-cpu-thumb-open", "dgz-cpu-ycb45")),
     ("dgz-cpu-variants", _REAL_TRAINING_HANDS | _E19_VARIANTS),
     ("dgz-cpu-aim", _REAL_TRAINING_HANDS | _E19_VARIANTS),
+    ("dgz-cpu-held", _REAL_TRAINING_HANDS | _E19_VARIANTS),
 ])
 def test_shipped_policy_loads_and_refuses_its_training_hands(tmp_path, name, training_hands):
     from conftest import REPO

@@ -182,6 +182,9 @@ def distill(
     settle: Optional[float] = typer.Option(None, "--settle", help="s the object settles on the table before each "
                                            "episode's first frame (default: the teacher's env, 0.3 s unless it was "
                                            "trained with settle_s)"),
+    teacher_view: Optional[str] = typer.Option(None, "--teacher-view", help="what the teacher labels from: sim (the "
+                                               "simulator's observation, default) or student (the student's view "
+                                               "plus contact and force, for a teacher trained with train_view)"),
     history: Optional[int] = typer.Option(None, "--history", help="steps the student's LSTM sees, the current one "
                                           "included (default: 5, the paper's)"),
     checkpoint_every: Optional[int] = typer.Option(None, "--checkpoint-every", help=_distill_default("checkpoint_every")),
@@ -197,7 +200,7 @@ def distill(
                  objects=objects, repeat=repeat, iterations=iterations, steps=steps, epochs=epochs,
                  learning_rate=learning_rate, finetune_iterations=finetune_iterations, joint_noise=joint_noise,
                  held_cloud=held_cloud, history=history, checkpoint_every=checkpoint_every, seed=seed,
-                 settle=settle)
+                 settle=settle, teacher_view=teacher_view)
     raise typer.Exit(distill_cmd.run({k: v for k, v in given.items() if v is not None}, out_dir, resume, asset_root,
                                      out))
 

@@ -83,7 +83,8 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     tmeta = teacher.meta
     env_cfg = tmeta.env.model_copy(update=dict(contract=student_contract(tmeta.contract))
                                    | ({} if cfg.settle_s is None else dict(settle_s=cfg.settle_s)))
-    env = HardwareViewEnv(pairs, env_cfg, cfg.view, teacher_layout=tmeta.contract.observation, seed=cfg.seed,
+    env = HardwareViewEnv(pairs, env_cfg, cfg.view, teacher_layout=tmeta.contract.observation,
+                          teacher_sees_view=cfg.teacher_view == "student", seed=cfg.seed,
                           asset_root=asset_root, threads=cfg.threads, use_pen=tmeta.train.ablation != "no_mask")
     try:
         shipped = Path(directory).resolve().parent == policies_dir().resolve()

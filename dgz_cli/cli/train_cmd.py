@@ -83,8 +83,13 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     objs = resolve_objects(cfg.objects, asset_root)
     pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
     init = None if resume or cfg.init_from is None else (*checkpoint.load(_init_directory(cfg.init_from)), cfg.init_from)
-    env = GraspEnv(pairs, env_config(cfg), seed=cfg.seed, asset_root=asset_root, threads=cfg.threads,
-                   use_pen=cfg.ablation != "no_mask")
+    kwargs = dict(seed=cfg.seed, asset_root=asset_root, threads=cfg.threads, use_pen=cfg.ablation != "no_mask")
+    if cfg.train_view is not None and cfg.train_view.active:
+        from dgz_cli.sim.hardware import HardwareViewEnv
+
+        env = HardwareViewEnv(pairs, env_config(cfg), cfg.train_view, **kwargs)
+    else:
+        env = GraspEnv(pairs, env_config(cfg), **kwargs)
     try:
         return Trainer(cfg, env, out, {s.name: spec_hash(p) for s, p in zip(specs, spec_paths.values())},
                        resume=resume, log=log, on_warm_start=on_warm_start,
@@ -166,6 +171,9 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
              if trainer.iteration == 0 and cfg.init_from is not None else f"from iteration {trainer.iteration}")
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, {start}")
+    if cfg.train_view is not None and cfg.train_view.active:
+        console.print(f"observing the object as hardware gives it: {escape(cfg.train_view.describe())}; contact and "
+                      "force as in simulation", highlight=False)
     if not run_until_stopped(trainer.train, trainer.stop, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "
                       "(continue with --resume)")

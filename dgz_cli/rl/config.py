@@ -12,6 +12,7 @@ from dgz_cli.spec.contract import (MARKOV_GLOBAL_BLOCKS, MARKOV_NODE_BLOCKS, Act
                                    ControlContract, EpisodeProtocol, ObservationLayout, StartPose,
                                    WristGuidance, check_translation_factors)
 from dgz_cli.spec.envconfig import MAX_SETTLE_S, EnvConfig, GraspXLReward, RewardWeights
+from dgz_cli.spec.hardware_view import HardwareView
 
 ABLATIONS = ("full", "no_physical", "early_fusion", "no_primitives", "no_mask")
 
@@ -122,6 +123,12 @@ class TrainConfig(BaseModel):
                                   "[e^-r, e^r] (training only; env dynamics_noise; 0 = off)")
     settle_s: float = Field(0.3, ge=0, le=MAX_SETTLE_S, description="s the object settles on the table before each episode's "
                             "first frame (env settle_s; dgz eval --settle sets it for evaluation)")
+    train_view: HardwareView | None = Field(None, description="training only: the policy is trained on the observation "
+                                            "hardware gives (spec.hardware_view: the first frame's object cloud held, "
+                                            "its centroid the guidance's target, object velocities 0; joint noise) and "
+                                            "keeps its privileged contact and force inputs; rewards use the true state; "
+                                            "dgz eval and deploy use the sim's view, dgz distill labels with it; "
+                                            "None = the sim's view")
     object_orientation: Literal["random", "upright"] = Field("random", description="the object's orientation when "
                                                              "dropped: random (all rotations) or upright (its model's "
                                                              "frame, uniform yaw; env object_orientation)")

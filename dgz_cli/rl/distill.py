@@ -6,7 +6,8 @@ teacher and trained by MSE between its action means and the teacher's; no value 
 (Ross et al. 2011): each iteration the *student* acts (its mean action) for ``steps_per_env`` control steps
 in every env, on the observation hardware gives (the env applies the run's
 :class:`~dgz_cli.spec.hardware_view.HardwareView`), while the teacher labels every visited state with its
-mean action on the simulator's full, unperturbed observation of the same state (``env.teacher_obs``). The
+mean action on the simulator's full, unperturbed observation of the same state (``env.teacher_obs``; with
+``teacher_view: student``, on the student's observation plus the privileged contact and force). The
 labelled steps of the latest ``buffer_iterations`` iterations are aggregated and the student is fitted for
 ``epochs`` passes (MSE over the valid action dims, as in :func:`dgz_cli.rl.bc.pretrain`). Then, if asked,
 ``finetune_iterations`` PPO iterations on the task reward (the teacher's PPO settings and reward scale;

@@ -3,6 +3,8 @@ and the student section of a checkpoint manifest (:class:`StudentMeta`)."""
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 from dgz_cli.policy.student_config import StudentConfig
@@ -44,6 +46,10 @@ class DistillConfig(BaseModel):
     threads: int = Field(2, ge=1, le=256, description="physics worker threads")
     torch_threads: int = Field(1, ge=1, le=256, description="torch threads for the fit (rollouts use 1)")
     view: HardwareView = Field(HARDWARE, description="what hardware gives, imposed on the student in simulation")
+    teacher_view: Literal["sim", "student"] = Field("sim", description="what the teacher labels from: the simulator's "
+                                                   "observation (sim), or the student's view plus the teacher's "
+                                                   "privileged contact and force (student: for a teacher trained "
+                                                   "under that view, dgz train's train_view)")
     settle_s: float | None = Field(None, ge=0, le=MAX_SETTLE_S, description="s the object settles before each episode's first "
                                    "frame (None: the teacher's env)")
     student: StudentConfig = StudentConfig()

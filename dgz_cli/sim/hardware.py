@@ -8,7 +8,9 @@ guidance and closing prior read the observation it returned, so under ``held_clo
 centroid, as the deploy loop does on hardware. Rewards and success use the true state.
 
 With ``teacher_layout`` (a layout that adds ``contact``/``force`` to the env's), :attr:`teacher_obs` holds
-the unperturbed observation of the same state in that layout after every reset and step.
+the unperturbed observation of the same state in that layout after every reset and step; with
+``teacher_sees_view`` it holds the perturbed one (the student's observation) plus the contact and force blocks,
+for a teacher trained under the same view.
 
 Randomness: the noise of slot b in its e-th episode comes from ``default_rng([seed, b, e, 1])``, so one slot
 sees the same noise in ``dgz eval`` and on ``dgz deploy --hand sim`` (one slot), whatever the batch.
@@ -28,8 +30,8 @@ _PRIV_LAYOUT = ObservationLayout(node=(("contact", 1), ("force", 1), ("finger", 
 
 class HardwareViewEnv(GraspEnv):
     def __init__(self, pairs, cfg, view: HardwareView, *, teacher_layout: ObservationLayout | None = None,
-                 **kwargs) -> None:
-        self.view, self.teacher_layout = view, teacher_layout
+                 teacher_sees_view: bool = False, **kwargs) -> None:
+        self.view, self.teacher_layout, self.teacher_sees_view = view, teacher_layout, teacher_sees_view
         self.teacher_obs: dict[str, np.ndarray] | None = None
         super().__init__(pairs, cfg, **kwargs)
         B, L = self.B, self.L
@@ -54,16 +56,16 @@ class HardwareViewEnv(GraspEnv):
         # An env step observes every slot once, then (if some finished and were reset) again for those:
         # the second pass only updates the fresh slots (the env keeps only their rows of it).
         rows = np.flatnonzero(self._fresh) if self._fresh.any() else np.arange(self.B)
+        seen = self._perturb(obs, rows) if self.view.active else obs
         if self.teacher_layout is not None:
-            self._teacher(obs, rows)
-        if self.view.active:
-            obs = self._perturb(obs, rows)
+            self._teacher(seen if self.teacher_sees_view else obs, rows)
         self._fresh[:] = False
-        return obs, d_world, obj_z
+        return seen, d_world, obj_z
 
     # ---------------------------------------------------------------- the teacher's observation
     def _teacher(self, obs: dict, rows: np.ndarray) -> None:
-        """Unperturbed observation in ``teacher_layout``: the env's blocks plus contact and force."""
+        """The observation ``obs`` (unperturbed, or the student's) in ``teacher_layout``: the env's blocks plus
+        contact and force."""
         lay, tl = self.cfg.contract.observation, self.teacher_layout
         force = self.buf["force"]
         priv = observe.node_features(self._priv_layout, self.node_valid, self.static_nodes, contact=force > 1e-6,
