@@ -215,18 +215,26 @@ def test_student_format_rules(student, tmp_path, change, match):
 
 
 # ---------------------------------------------------------------------- the hardware view
-def test_hardware_view_env_gives_the_teacher_its_observation_and_the_student_hardwares():
-    """Without perturbation the teacher's observation is the plain env's exactly; with them, the student's
-    target stays on the first frame's centroid and the object velocities read 0, and joint noise shows."""
+def _teacher_and_student_envs():
+    """The teacher's env config, the student's (the teacher's contract without the privileged blocks) and
+    dgz_tri × sphere, box: the pairs the hardware-view tests step."""
     from dgz_cli.rl.checkpoint import read_meta, resolve_checkpoint
-    from dgz_cli.sim.env import GraspEnv
-    from dgz_cli.sim.hardware import HardwareViewEnv
     from dgz_cli.sim.objects import resolve_objects
-    from dgz_cli.spec.hardware_view import HardwareView, student_contract
+    from dgz_cli.spec.hardware_view import student_contract
 
     tcfg = read_meta(resolve_checkpoint(TEACHER)).env
     scfg = tcfg.model_copy(update=dict(contract=student_contract(tcfg.contract)))
-    pairs = [(TRI, o) for o in resolve_objects("sphere,box")]
+    return tcfg, scfg, [(TRI, o) for o in resolve_objects("sphere,box")]
+
+
+def test_hardware_view_env_gives_the_teacher_its_observation_and_the_student_hardwares():
+    """Without perturbation the teacher's observation is the plain env's exactly; with them, the student's
+    target stays on the first frame's centroid and the object velocities read 0, and joint noise shows."""
+    from dgz_cli.sim.env import GraspEnv
+    from dgz_cli.sim.hardware import HardwareViewEnv
+    from dgz_cli.spec.hardware_view import HardwareView
+
+    tcfg, scfg, pairs = _teacher_and_student_envs()
     plain = GraspEnv(pairs, tcfg, threads=1)
     clean = HardwareViewEnv(pairs, scfg, HardwareView(), teacher_layout=tcfg.contract.observation, threads=1)
     hw = HardwareViewEnv(pairs, scfg, HardwareView(joint_noise=0.01, held_cloud=True), threads=1)
@@ -254,20 +262,15 @@ def test_hardware_view_env_gives_the_teacher_its_observation_and_the_student_har
 def test_a_teacher_can_label_from_the_students_view_plus_its_privileged_inputs():
     """teacher_sees_view (dgz distill --teacher-view student): the teacher's observation is the student's
     perturbed one (held cloud, noisy joints) in the teacher's layout, with the simulator's contact and force."""
-    from dgz_cli.rl.checkpoint import read_meta, resolve_checkpoint
     from dgz_cli.sim.hardware import HardwareViewEnv
-    from dgz_cli.sim.objects import resolve_objects
-    from dgz_cli.spec.hardware_view import HardwareView, student_contract
+    from dgz_cli.sim.scripted import ScriptedGrasp
+    from dgz_cli.spec.hardware_view import HardwareView
 
-    tcfg = read_meta(resolve_checkpoint(TEACHER)).env
-    scfg = tcfg.model_copy(update=dict(contract=student_contract(tcfg.contract)))
-    pairs = [(TRI, o) for o in resolve_objects("sphere,box")]
+    tcfg, scfg, pairs = _teacher_and_student_envs()
     view = HardwareView(joint_noise=0.01, held_cloud=True)
     envs = [HardwareViewEnv(pairs, scfg, view, teacher_layout=tcfg.contract.observation, teacher_sees_view=sees,
                             threads=1) for sees in (False, True)]
     tl, sl = tcfg.contract.observation, scfg.contract.observation
-    from dgz_cli.sim.scripted import ScriptedGrasp
-
     script = ScriptedGrasp.for_env(envs[0])  # it grasps, so the contact blocks are not all zero
     obs = [e.reset(0) for e in envs]
     touched = False

@@ -127,7 +127,8 @@ class TrainConfig(BaseModel):
                                             "hardware gives (spec.hardware_view: the first frame's object cloud held, "
                                             "its centroid the guidance's target, object velocities 0; joint noise) and "
                                             "keeps its privileged contact and force inputs; rewards use the true state; "
-                                            "dgz eval and deploy use the sim's view, dgz distill labels with it; "
+                                            "dgz eval and deploy use the sim's view; dgz distill --teacher-view student "
+                                            "labels with it; "
                                             "None = the sim's view")
     object_orientation: Literal["random", "upright"] = Field("random", description="the object's orientation when "
                                                              "dropped: random (all rotations) or upright (its model's "
