@@ -116,6 +116,37 @@ def test_init_from_fine_tunes_the_checkpoint_with_its_recipe(run_dir, tmp_path):
     fresh.env.close()
 
 
+def test_a_std_ceiling_lowers_a_fine_tunes_exploration_from_its_first_rollout(tmp_path):
+    """``ppo.max_std``: a fine-tune starts exploring at most that std (before its first rollout, not after its
+    first update), PPO keeps it within [min_std, max_std], the other weights are the checkpoint's, and the bound is
+    recorded; a floor above the ceiling is refused."""
+    import math
+
+    from pydantic import ValidationError
+
+    from dgz_cli.cli.train_cmd import _load_config
+    from dgz_cli.rl.config import PPOConfig
+
+    source = build(TrainConfig(iterations=1, init_log_std=-0.5, **SMOKE), tmp_path / "src", None)
+    source.save()
+    source.env.close()
+    ppo = dict(TrainConfig().ppo.model_dump(), min_std=0.1, max_std=0.2)
+    cfg = _load_config({"init_from": str(tmp_path / "src"), "ppo": ppo, "objects": "sphere", "repeat": 1}, None,
+                       tmp_path / "ft", resume=False)
+    tuned = build(cfg, tmp_path / "ft", None)
+    stds = [p for k, p in tuned.model.state_dict().items() if k.startswith("log_std")]
+    assert all(torch.allclose(p, torch.full_like(p, math.log(0.2))) for p in stds)  # 0.61 at the source
+    for k, v in source.model.state_dict().items():
+        if not k.startswith("log_std"):
+            assert torch.equal(tuned.model.state_dict()[k], v), k
+    tuned.train()
+    for p in (tuned.model.log_std_wrist, tuned.model.log_std_prim):
+        assert math.log(0.1) - 1e-6 <= float(p.min()) and float(p.max()) <= math.log(0.2) + 1e-6
+    assert read_meta(tmp_path / "ft").train.ppo.max_std == 0.2
+    with pytest.raises(ValidationError, match="min_std 0.3 is above max_std 0.2"):
+        PPOConfig(min_std=0.3, max_std=0.2)
+
+
 def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     """A fine-tune may change only the residual factors of the contract. A wrist that was no action in the
     checkpoint (``wrist_residual`` 0 with ``mask_actions``) starts with a zero-mean wrist head, so the run

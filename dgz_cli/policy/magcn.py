@@ -155,10 +155,10 @@ class MAGCN(nn.Module):
         return av
 
     @torch.no_grad()
-    def clamp_log_std(self, minimum: float) -> None:
-        """Exploration floor: no log-std parameter below ``minimum``."""
-        self.log_std_wrist.clamp_(min=minimum)
-        self.log_std_prim.clamp_(min=minimum)
+    def clamp_log_std(self, minimum: float | None = None, maximum: float | None = None) -> None:
+        """Exploration bounds: no log-std parameter below ``minimum`` or above ``maximum`` (None: unbounded)."""
+        self.log_std_wrist.clamp_(min=minimum, max=maximum)
+        self.log_std_prim.clamp_(min=minimum, max=maximum)
 
     @torch.no_grad()
     def act(self, obs: Obs) -> torch.Tensor:

@@ -41,6 +41,14 @@ class PPOConfig(BaseModel):
     normalize_advantages: bool = True
     min_std: float = Field(0.0, ge=0, le=10, description="exploration floor: the policy's std is kept ≥ this "
                            "after every step (GraspXL: 0.2); 0 = none")
+    max_std: float = Field(0.0, ge=0, le=10, description="exploration ceiling: the policy's std is kept ≤ this from "
+                           "the first rollout on (a fine-tune can lower its checkpoint's exploration); 0 = none")
+
+    @model_validator(mode="after")
+    def _std_bounds_ordered(self):
+        if self.min_std > 0 and self.max_std > 0 and self.min_std > self.max_std:
+            raise ValueError(f"min_std {self.min_std:g} is above max_std {self.max_std:g}")
+        return self
 
 
 class TrainConfig(BaseModel):

@@ -58,6 +58,13 @@ class PPO:
         self.schedule = (AdaptiveKLSchedule(c.learning_rate, c.desired_kl, c.min_lr, c.max_lr)
                          if c.schedule == "adaptive" else None)
 
+    def enforce_std_bounds(self) -> None:
+        """Keep the policy's exploration std within ``[min_std, max_std]`` (a bound of 0 is off)."""
+        c = self.cfg
+        if c.min_std > 0 or c.max_std > 0:
+            self.policy.clamp_log_std(math.log(c.min_std) if c.min_std > 0 else None,
+                                      math.log(c.max_std) if c.max_std > 0 else None)
+
     @property
     def learning_rate(self) -> float:
         return self.optimizer.param_groups[0]["lr"]
@@ -138,8 +145,7 @@ class PPO:
                 loss.backward()
                 grad_norm = nn.utils.clip_grad_norm_(self.policy.parameters(), c.max_grad_norm)
                 self.optimizer.step()
-                if c.min_std > 0:
-                    self.policy.clamp_log_std(math.log(c.min_std))
+                self.enforce_std_bounds()
                 clip_frac = ((ratio - 1.0).abs() > c.clip_param).float().mean()
                 for k, v in zip(keys, (loss, surrogate, value_loss, entropy, kl, clip_frac, grad_norm)):
                     acc[k] += float(v.detach())

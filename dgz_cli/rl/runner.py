@@ -81,6 +81,7 @@ class Trainer:
             raise DgzError(f"{self.out} already holds a run", "pass --resume to continue it, or choose another --out")
         elif init is not None:
             self._init_from(*init)
+        self.ppo.enforce_std_bounds()  # a fine-tune's or resumed run's first rollout already explores within them
 
     # ------------------------------------------------------------------ checkpoints
     def meta(self) -> CheckpointMeta:
