@@ -140,7 +140,7 @@ def test_a_std_ceiling_lowers_a_fine_tunes_exploration_from_its_first_rollout(tm
         if not k.startswith("log_std"):
             assert torch.equal(tuned.model.state_dict()[k], v), k
     tuned.train()
-    for p in (tuned.model.log_std_wrist, tuned.model.log_std_prim):
+    for p in (tuned.model.log_std_wrist.detach(), tuned.model.log_std_prim.detach()):
         assert math.log(0.1) - 1e-6 <= float(p.min()) and float(p.max()) <= math.log(0.2) + 1e-6
     assert read_meta(tmp_path / "ft").train.ppo.max_std == 0.2
     with pytest.raises(ValidationError, match="min_std 0.3 is above max_std 0.2"):
