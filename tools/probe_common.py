@@ -24,6 +24,8 @@ LAYOUT = ObservationLayout(node=MARKOV_NODE_BLOCKS, global_=MARKOV_GLOBAL_BLOCKS
 # the nine objects YCB-45 is lost on (docs/training.md, after E16)
 NINE = ("032_knife,030_fork,031_spoon,040_large_marker,037_scissors,071_nine_hole_peg_test,035_power_drill,"
         "028_skillet_lid,048_hammer")
+# four round or boxy objects every hand lifts often: the controls beside the lost objects
+CONTROL = "005_tomato_soup_can,013_apple,006_mustard_bottle,011_banana"
 
 
 def open_hand_tips(spec, q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -109,4 +111,22 @@ def main(variants: dict, run: Callable, default_hands: str | None = None) -> Non
         for name in names:
             out.setdefault(hand, {})[name] = run(spec, variants[name])
             print(hand, name, out[hand][name], flush=True)
+    print(json.dumps(out))
+
+
+def main_grouped(variants: dict, run: Callable, groups: dict[str, str], default_slots: int) -> None:
+    """`python tools/probe_X.py HANDS [VARIANTS] [SLOTS]`: ``run(spec, variant, objects, slots)`` for every hand,
+    variant and object group (name → comma-separated objects); print `hand variant group {success, failures...}`
+    as each finishes, then all of them as one JSON line {hand: {variant: {group: result}}}."""
+    hands = sys.argv[1].split(",")
+    names = sys.argv[2].split(",") if len(sys.argv) > 2 and sys.argv[2] else list(variants)
+    slots = int(sys.argv[3]) if len(sys.argv) > 3 else default_slots
+    out: dict = {}
+    for hand in hands:
+        spec = load_spec(resolve_spec(hand))
+        for name in names:
+            for group, objs in groups.items():
+                r = run(spec, variants[name], objs, slots)
+                out.setdefault(hand, {}).setdefault(name, {})[group] = r
+                print(hand, name, group, r, flush=True)
     print(json.dumps(out))

@@ -6,19 +6,13 @@ rising along −n while the fingers close (a compliant close: the fingertips sli
 thumb instead of jamming on it), or both. Flat objects and four round or boxy controls, seed 0.
 docs/training.md, "Flat objects".
 Run: DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_flat_pinch.py HANDS [VARIANTS] [SLOTS]"""
-import json
-import sys
-
 import numpy as np
-from probe_common import e13_scripted, probe
+from probe_common import CONTROL, e13_scripted, main_grouped, probe
 
 from dgz_cli.sim.scripted import ScriptedGrasp
-from dgz_cli.spec.catalog import resolve_spec
-from dgz_cli.spec.io import load_spec
 from dgz_cli.spec.models import FINGER_CLASSES
 
 FLAT = "030_fork,032_knife,031_spoon,040_large_marker,037_scissors"
-CONTROL = "005_tomato_soup_can,013_apple,006_mustard_bottle,011_banana"
 
 
 class CompliantClose(ScriptedGrasp):
@@ -77,15 +71,4 @@ def run(spec, variant, objects: str, slots: int) -> dict:
 
 
 if __name__ == "__main__":
-    hands = sys.argv[1].split(",")
-    names = sys.argv[2].split(",") if len(sys.argv) > 2 and sys.argv[2] else list(VARIANTS)
-    slots = int(sys.argv[3]) if len(sys.argv) > 3 else 5
-    out: dict = {}
-    for hand in hands:
-        spec = load_spec(resolve_spec(hand))
-        for name in names:
-            for group, objs in (("flat", FLAT), ("control", CONTROL)):
-                r = run(spec, VARIANTS[name], objs, slots)
-                out.setdefault(hand, {}).setdefault(name, {})[group] = r
-                print(hand, name, group, r, flush=True)
-    print(json.dumps(out))
+    main_grouped(VARIANTS, run, {"flat": FLAT, "control": CONTROL}, default_slots=5)
