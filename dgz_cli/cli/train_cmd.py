@@ -84,10 +84,10 @@ def build(cfg, out: Path, asset_root: str | None, resume: bool = False, log=None
     pairs = [(s, o) for _ in range(cfg.repeat) for s in specs for o in objs]
     init = None if resume or cfg.init_from is None else (*checkpoint.load(_init_directory(cfg.init_from)), cfg.init_from)
     kwargs = dict(seed=cfg.seed, asset_root=asset_root, threads=cfg.threads, use_pen=cfg.ablation != "no_mask")
-    if cfg.train_view is not None and cfg.train_view.active:
+    if cfg.observed_view is not None:
         from dgz_cli.sim.hardware import HardwareViewEnv
 
-        env = HardwareViewEnv(pairs, env_config(cfg), cfg.train_view, **kwargs)
+        env = HardwareViewEnv(pairs, env_config(cfg), cfg.observed_view, **kwargs)
     else:
         env = GraspEnv(pairs, env_config(cfg), **kwargs)
     try:
@@ -171,8 +171,8 @@ def run(given: dict, config_file: Path | None, out: Path, resume: bool, asset_ro
              if trainer.iteration == 0 and cfg.init_from is not None else f"from iteration {trainer.iteration}")
     console.print(f"training {cfg.preset} ({cfg.ablation}) on {escape(', '.join(cfg.hands))} × {escape(str(cfg.objects))}: "
                   f"{trainer.env.B} envs, {cfg.steps_per_env} steps per update, {start}")
-    if cfg.train_view is not None and cfg.train_view.active:
-        console.print(f"observing the object as hardware gives it: {escape(cfg.train_view.describe())}; contact and "
+    if cfg.observed_view is not None:
+        console.print(f"observing the object as hardware gives it: {escape(cfg.observed_view.describe())}; contact and "
                       "force as in simulation", highlight=False)
     if not run_until_stopped(trainer.train, trainer.stop, out, existed, tb_before, writer):
         console.print(f"[yellow]interrupted: saved iteration {trainer.iteration} to {escape(str(out))}[/] "

@@ -162,6 +162,12 @@ class TrainConfig(BaseModel):
             raise ValueError(f"must be a whole multiple of the {control_hz:g} Hz control rate (e.g. 200 or 400)")
         return v
 
+    @property
+    def observed_view(self) -> HardwareView | None:
+        """The hardware view the training env imposes, or None when it observes as the simulator does (no
+        ``train_view``, or one that perturbs nothing)."""
+        return self.train_view if self.train_view is not None and self.train_view.active else None
+
     @field_validator("wrist_translation_residual")
     @classmethod
     def _translation_factors(cls, v):
