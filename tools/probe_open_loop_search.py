@@ -1,0 +1,102 @@
+"""Is there any grasp of a lost object that this control contract can express? A cross-entropy search over
+open-loop residuals, per (hand, object), from the env of a checkpoint (its protocol, start states and closing
+prior), with the finger residual at full authority (so a finger can be held back) and the wrist's translation an
+aim shift of up to ``AIM`` m.
+
+A candidate θ (15 numbers for a four-finger hand) is constant over the episode: the aim shift (3, ±1 → ±AIM m on
+the palm's axes), a closing delay (one number in [0, 1] → 0–100 control steps during which every FLEX action is −1,
+i.e. the prior's closing is cancelled), a wrist rotation rate (3, ±1 → ±0.01 rad per step about the palm's
+axes, for the first ROT_STEPS steps: up to 0.6 rad of tilt, with the wrist residual at full authority), and per finger a FLEX action in [−1, 0] once the delay is over (0: close as
+the prior does, −1: hold the finger) and an ABD action in [−1, 1] throughout. Every candidate runs on the same
+``STARTS`` start states (seed SEED, default 0, one episode each); its score is the success rate plus 0.1 × the mean max rise /
+0.5 m (a tie-breaker toward lifting). The search keeps the ``ELITE`` best of ``POP`` per generation.
+
+`DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_open_loop_search.py CHECKPOINT HAND OBJECT
+[GENERATIONS] [STARTS] [SEED]` prints each generation's best and mean and the best candidate's success on its starts,
+then on ``STARTS`` fresh start states (seed SEED + 1000). With STARTS 1 and SEED 0, 1, ... it asks, start
+by start, whether any such residual lifts the object from that start. A probe of what the contract can express, not a policy."""
+import json
+import sys
+
+import numpy as np
+
+from dgz_cli.rl.checkpoint import LoadedPolicy
+from dgz_cli.sim.evaluate import make_env
+from dgz_cli.sim.objects import resolve_objects
+from dgz_cli.spec.catalog import resolve_spec
+from dgz_cli.spec.io import load_spec
+from dgz_cli.spec.models import PRIMITIVES
+
+AIM, POP, ELITE, DELAY_STEPS, ROT_STEPS = 0.08, 20, 5, 100, 60
+FINGER0 = 7  # θ: aim (3), closing delay (1), rotation rate (3), then (FLEX, ABD) per finger
+
+
+def episode_scores(env, theta: np.ndarray, fingers: list[str], node_finger: np.ndarray, seed: int) -> tuple[float, float]:
+    """(success rate, mean max rise m) of one candidate θ over every slot of ``env`` (one episode each)."""
+    act = env.cfg.contract.action
+    n_prim, flex, abd = act.n_prim, PRIMITIVES.index("FLEX"), PRIMITIVES.index("ABD")
+    obs = env.reset(seed)
+    B, N = obs["node_valid"].shape
+    done, success, rise = np.zeros(B, bool), np.zeros(B), np.zeros(B)
+    delay = int(round(np.clip(theta[3], 0, 1) * DELAY_STEPS))
+    while not done.all():
+        a = np.zeros((B, act.dim(N)))
+        a[:, :3] = np.clip(theta[:3], -1, 1)
+        a[:, 3:6] = np.where(env.t[:, None] < ROT_STEPS, np.clip(theta[4:7], -1, 1), 0.0)
+        nodes = a[:, act.wrist_dim:].reshape(B, N, n_prim)  # a view
+        for i, finger in enumerate(fingers):
+            on = node_finger == finger
+            nodes[:, on, abd] = np.clip(theta[FINGER0 + 2 * i + 1], -1, 1)
+            nodes[:, on, flex] = np.where(env.t[:, None] < delay, -1.0, np.clip(theta[FINGER0 + 2 * i], -1, 0))
+        obs, _, _, _, info = env.step(a)
+        for b, ep in info["episode"].items():
+            if not done[b]:
+                done[b], success[b], rise[b] = True, ep["success"], ep["max_rise"]
+    return float(success.mean()), float(rise.mean())
+
+
+def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int = 8, seed: int = 0) -> None:
+    meta = LoadedPolicy(checkpoint).meta
+    contract = meta.contract
+    contract = contract.model_copy(update=dict(
+        action=contract.action.model_copy(update=dict(finger_residual=1.0, wrist_residual=1.0)),
+        guidance=contract.guidance.model_copy(update=dict(aim_residual=AIM))))
+    cfg = meta.env.model_copy(update=dict(contract=contract))
+    spec = load_spec(resolve_spec(hand))
+    (model,) = resolve_objects(obj)
+    env = make_env([(spec, model)] * starts, cfg, seed=seed)
+    node_finger = np.array([(n.finger or "") if n.type != "wrist" else "" for n in spec.nodes], dtype=object)
+    fingers = sorted({f for f in node_finger if f})
+    rng = np.random.default_rng(0)
+    dim = FINGER0 + 2 * len(fingers)
+    mean, std = np.zeros(dim), np.full(dim, 0.5)
+    mean[3] = 0.0
+    best = (-1.0, None, 0.0)
+    zero = episode_scores(env, mean, fingers, node_finger, seed)
+    print(f"{hand} {obj}: zero residual (the prior alone) success {zero[0]:.3f} rise {zero[1]:.3f}", flush=True)
+    for g in range(generations):
+        cands = mean + std * rng.standard_normal((POP, dim))
+        cands[0] = mean
+        scored = []
+        for c in cands:
+            s, r = episode_scores(env, c, fingers, node_finger, seed)
+            scored.append((s + 0.1 * min(r / 0.5, 1.0), s, c))
+            if s > best[0] or (s == best[0] and r > best[2]):
+                best = (s, c.copy(), r)
+        scored.sort(key=lambda x: -x[0])
+        elite = np.array([c for _, _, c in scored[:ELITE]])
+        mean, std = elite.mean(0), np.maximum(elite.std(0), 0.05)
+        print(f"gen {g + 1}: best success {scored[0][1]:.3f} mean {np.mean([s for _, s, _ in scored]):.3f} "
+              f"overall best {best[0]:.3f}", flush=True)
+    fresh = episode_scores(env, best[1], fingers, node_finger, seed + 1000)
+    zero_fresh = episode_scores(env, np.zeros(dim), fingers, node_finger, seed + 1000)
+    env.close()
+    print(json.dumps(dict(hand=hand, object=obj, starts=starts, seed=seed, generations=generations, fingers=fingers,
+                          zero=zero[0], best=best[0], best_theta=[round(float(x), 3) for x in best[1]],
+                          fresh_best=fresh[0], fresh_zero=zero_fresh[0])), flush=True)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 4:
+        sys.exit(__doc__)
+    main(sys.argv[1], sys.argv[2], sys.argv[3], *(int(x) for x in sys.argv[4:7]))
