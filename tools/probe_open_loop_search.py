@@ -1,20 +1,22 @@
 """Is there any grasp of a lost object that this control contract can express? A cross-entropy search over
 open-loop residuals, per (hand, object), from the env of a checkpoint (its protocol, start states and closing
-prior), with the finger residual at full authority (so a finger can be held back) and the wrist's translation an
-aim shift of up to ``AIM`` m.
+prior), with the finger and wrist residual factors at full authority (so a finger can be held back) and the wrist's
+translation an aim shift of up to AIM m (default 0.08).
 
 A candidate θ (15 numbers for a four-finger hand) is constant over the episode: the aim shift (3, ±1 → ±AIM m on
 the palm's axes), a closing delay (one number in [0, 1] → 0–100 control steps during which every FLEX action is −1,
-i.e. the prior's closing is cancelled), a wrist rotation rate (3, ±1 → ±0.01 rad per step about the palm's
-axes, for the first ROT_STEPS steps: up to 0.6 rad of tilt, with the wrist residual at full authority), and per finger a FLEX action in [−1, 0] once the delay is over (0: close as
-the prior does, −1: hold the finger) and an ABD action in [−1, 1] throughout. Every candidate runs on the same
-``STARTS`` start states (seed SEED, default 0, one episode each); its score is the success rate plus 0.1 × the mean max rise /
-0.5 m (a tie-breaker toward lifting). The search keeps the ``ELITE`` best of ``POP`` per generation.
+i.e. the prior's closing is cancelled), a wrist rotation rate (3, ±1 → ±0.01 rad per step about the palm's axes,
+times ROT, for the first ROT_STEPS steps: up to 0.6 rad of tilt), and per finger a FLEX action in [−1, 0] once the
+delay is over (0: close as the prior does, −1: hold the finger) and an ABD action in [−1, 1] throughout. Every
+candidate runs on the same STARTS start states (seed SEED, one episode each); its score is the success rate plus
+0.1 × the mean max rise / 0.5 m (a tie-breaker toward lifting). The search keeps the ELITE best of POP per
+generation.
 
 `DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_open_loop_search.py CHECKPOINT HAND OBJECT
-[GENERATIONS] [STARTS] [SEED]` prints each generation's best and mean and the best candidate's success on its starts,
-then on ``STARTS`` fresh start states (seed SEED + 1000). With STARTS 1 and SEED 0, 1, ... it asks, start
-by start, whether any such residual lifts the object from that start. A probe of what the contract can express, not a policy."""
+[GENERATIONS=8] [STARTS=8] [SEED=0] [AIM=0.08] [ROT=1]` prints each generation's best and mean, then
+one JSON line: the prior alone and the best candidate on the search's starts, and both on STARTS other starts (seed
+SEED + 1000). With STARTS 1 and SEED 0, 1, ... it asks, start by start, whether any such residual lifts the object
+from that start. A probe of what the contract can express, not a policy."""
 import json
 import sys
 
@@ -31,7 +33,8 @@ AIM, POP, ELITE, DELAY_STEPS, ROT_STEPS = 0.08, 20, 5, 100, 60
 FINGER0 = 7  # θ: aim (3), closing delay (1), rotation rate (3), then (FLEX, ABD) per finger
 
 
-def episode_scores(env, theta: np.ndarray, fingers: list[str], node_finger: np.ndarray, seed: int) -> tuple[float, float]:
+def episode_scores(env, theta: np.ndarray, fingers: list[str], node_finger: np.ndarray, seed: int,
+                   rot: float = 1.0) -> tuple[float, float]:
     """(success rate, mean max rise m) of one candidate θ over every slot of ``env`` (one episode each)."""
     act = env.cfg.contract.action
     n_prim, flex, abd = act.n_prim, PRIMITIVES.index("FLEX"), PRIMITIVES.index("ABD")
@@ -42,7 +45,7 @@ def episode_scores(env, theta: np.ndarray, fingers: list[str], node_finger: np.n
     while not done.all():
         a = np.zeros((B, act.dim(N)))
         a[:, :3] = np.clip(theta[:3], -1, 1)
-        a[:, 3:6] = np.where(env.t[:, None] < ROT_STEPS, np.clip(theta[4:7], -1, 1), 0.0)
+        a[:, 3:6] = np.where(env.t[:, None] < ROT_STEPS, rot * np.clip(theta[4:7], -1, 1), 0.0)
         nodes = a[:, act.wrist_dim:].reshape(B, N, n_prim)  # a view
         for i, finger in enumerate(fingers):
             on = node_finger == finger
@@ -55,12 +58,13 @@ def episode_scores(env, theta: np.ndarray, fingers: list[str], node_finger: np.n
     return float(success.mean()), float(rise.mean())
 
 
-def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int = 8, seed: int = 0) -> None:
+def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int = 8, seed: int = 0,
+         aim: float = AIM, rot: float = 1.0) -> None:
     meta = LoadedPolicy(checkpoint).meta
     contract = meta.contract
     contract = contract.model_copy(update=dict(
         action=contract.action.model_copy(update=dict(finger_residual=1.0, wrist_residual=1.0)),
-        guidance=contract.guidance.model_copy(update=dict(aim_residual=AIM))))
+        guidance=contract.guidance.model_copy(update=dict(aim_residual=aim))))
     cfg = meta.env.model_copy(update=dict(contract=contract))
     spec = load_spec(resolve_spec(hand))
     (model,) = resolve_objects(obj)
@@ -72,14 +76,14 @@ def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int
     mean, std = np.zeros(dim), np.full(dim, 0.5)
     mean[3] = 0.0
     best = (-1.0, None, 0.0)
-    zero = episode_scores(env, mean, fingers, node_finger, seed)
+    zero = episode_scores(env, mean, fingers, node_finger, seed, rot)
     print(f"{hand} {obj}: zero residual (the prior alone) success {zero[0]:.3f} rise {zero[1]:.3f}", flush=True)
     for g in range(generations):
         cands = mean + std * rng.standard_normal((POP, dim))
         cands[0] = mean
         scored = []
         for c in cands:
-            s, r = episode_scores(env, c, fingers, node_finger, seed)
+            s, r = episode_scores(env, c, fingers, node_finger, seed, rot)
             scored.append((s + 0.1 * min(r / 0.5, 1.0), s, c))
             if s > best[0] or (s == best[0] and r > best[2]):
                 best = (s, c.copy(), r)
@@ -88,10 +92,11 @@ def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int
         mean, std = elite.mean(0), np.maximum(elite.std(0), 0.05)
         print(f"gen {g + 1}: best success {scored[0][1]:.3f} mean {np.mean([s for _, s, _ in scored]):.3f} "
               f"overall best {best[0]:.3f}", flush=True)
-    fresh = episode_scores(env, best[1], fingers, node_finger, seed + 1000)
-    zero_fresh = episode_scores(env, np.zeros(dim), fingers, node_finger, seed + 1000)
+    fresh = episode_scores(env, best[1], fingers, node_finger, seed + 1000, rot)
+    zero_fresh = episode_scores(env, np.zeros(dim), fingers, node_finger, seed + 1000, rot)
     env.close()
-    print(json.dumps(dict(hand=hand, object=obj, starts=starts, seed=seed, generations=generations, fingers=fingers,
+    print(json.dumps(dict(hand=hand, object=obj, starts=starts, seed=seed, generations=generations, aim=aim, rot=rot,
+                          fingers=fingers,
                           zero=zero[0], best=best[0], best_theta=[round(float(x), 3) for x in best[1]],
                           fresh_best=fresh[0], fresh_zero=zero_fresh[0])), flush=True)
 
@@ -99,4 +104,4 @@ def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int
 if __name__ == "__main__":
     if len(sys.argv) < 4:
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2], sys.argv[3], *(int(x) for x in sys.argv[4:7]))
+    main(sys.argv[1], sys.argv[2], sys.argv[3], *(int(x) for x in sys.argv[4:7]), *(float(x) for x in sys.argv[7:9]))
