@@ -33,24 +33,28 @@ AIM, POP, ELITE, DELAY_STEPS, ROT_STEPS = 0.08, 20, 5, 100, 60
 FINGER0 = 7  # θ: aim (3), closing delay (1), rotation rate (3), then (FLEX, ABD) per finger
 
 
-def episode_scores(env, theta: np.ndarray, fingers: list[str], node_finger: np.ndarray, seed: int,
+def episode_scores(env, theta: np.ndarray, finger_masks: list[np.ndarray], seed: int,
                    rot: float = 1.0) -> tuple[float, float]:
-    """(success rate, mean max rise m) of one candidate θ over every slot of ``env`` (one episode each)."""
+    """(success rate, mean max rise m) of one candidate θ over every slot of ``env`` (one episode each);
+    ``finger_masks``: per finger (θ's order), which of the N nodes (N,) bool belong to it."""
     act = env.cfg.contract.action
     n_prim, flex, abd = act.n_prim, PRIMITIVES.index("FLEX"), PRIMITIVES.index("ABD")
     obs = env.reset(seed)
     B, N = obs["node_valid"].shape
-    done, success, rise = np.zeros(B, bool), np.zeros(B), np.zeros(B)
     delay = int(round(np.clip(theta[3], 0, 1) * DELAY_STEPS))
+    closing = np.zeros((N, n_prim))  # the finger actions once the delay is over; before it FLEX is -1
+    for i, on in enumerate(finger_masks):
+        closing[on, abd] = np.clip(theta[FINGER0 + 2 * i + 1], -1, 1)
+        closing[on, flex] = np.clip(theta[FINGER0 + 2 * i], -1, 0)
+    held = closing.copy()
+    held[np.any(finger_masks, axis=0), flex] = -1.0
+    rotation = rot * np.clip(theta[4:7], -1, 1)
+    done, success, rise = np.zeros(B, bool), np.zeros(B), np.zeros(B)
     while not done.all():
         a = np.zeros((B, act.dim(N)))
         a[:, :3] = np.clip(theta[:3], -1, 1)
-        a[:, 3:6] = np.where(env.t[:, None] < ROT_STEPS, rot * np.clip(theta[4:7], -1, 1), 0.0)
-        nodes = a[:, act.wrist_dim:].reshape(B, N, n_prim)  # a view
-        for i, finger in enumerate(fingers):
-            on = node_finger == finger
-            nodes[:, on, abd] = np.clip(theta[FINGER0 + 2 * i + 1], -1, 1)
-            nodes[:, on, flex] = np.where(env.t[:, None] < delay, -1.0, np.clip(theta[FINGER0 + 2 * i], -1, 0))
+        a[:, 3:6] = np.where(env.t[:, None] < ROT_STEPS, rotation, 0.0)
+        a[:, act.wrist_dim:] = np.where(env.t[:, None] < delay, held.reshape(-1), closing.reshape(-1))
         obs, _, _, _, info = env.step(a)
         for b, ep in info["episode"].items():
             if not done[b]:
@@ -71,19 +75,19 @@ def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int
     env = make_env([(spec, model)] * starts, cfg, seed=seed)
     node_finger = np.array([(n.finger or "") if n.type != "wrist" else "" for n in spec.nodes], dtype=object)
     fingers = sorted({f for f in node_finger if f})
+    masks = [node_finger == f for f in fingers]
     rng = np.random.default_rng(0)
     dim = FINGER0 + 2 * len(fingers)
     mean, std = np.zeros(dim), np.full(dim, 0.5)
-    mean[3] = 0.0
     best = (-1.0, None, 0.0)
-    zero = episode_scores(env, mean, fingers, node_finger, seed, rot)
+    zero = episode_scores(env, mean, masks, seed, rot)
     print(f"{hand} {obj}: zero residual (the prior alone) success {zero[0]:.3f} rise {zero[1]:.3f}", flush=True)
     for g in range(generations):
         cands = mean + std * rng.standard_normal((POP, dim))
         cands[0] = mean
         scored = []
         for c in cands:
-            s, r = episode_scores(env, c, fingers, node_finger, seed, rot)
+            s, r = episode_scores(env, c, masks, seed, rot)
             scored.append((s + 0.1 * min(r / 0.5, 1.0), s, c))
             if s > best[0] or (s == best[0] and r > best[2]):
                 best = (s, c.copy(), r)
@@ -92,8 +96,8 @@ def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int
         mean, std = elite.mean(0), np.maximum(elite.std(0), 0.05)
         print(f"gen {g + 1}: best success {scored[0][1]:.3f} mean {np.mean([s for _, s, _ in scored]):.3f} "
               f"overall best {best[0]:.3f}", flush=True)
-    fresh = episode_scores(env, best[1], fingers, node_finger, seed + 1000, rot)
-    zero_fresh = episode_scores(env, np.zeros(dim), fingers, node_finger, seed + 1000, rot)
+    fresh = episode_scores(env, best[1], masks, seed + 1000, rot)
+    zero_fresh = episode_scores(env, np.zeros(dim), masks, seed + 1000, rot)
     env.close()
     print(json.dumps(dict(hand=hand, object=obj, starts=starts, seed=seed, generations=generations, aim=aim, rot=rot,
                           fingers=fingers,
