@@ -197,6 +197,56 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
         build(other, tmp_path / "x", None)
 
 
+def test_init_from_keeps_the_checkpoints_commands_when_residual_factors_change(tmp_path):
+    """Raising the residual factors and the aim range in a fine-tune (finger 0.5 → 1, wrist 0.25 → 1, aim 5 → 8
+    cm) scales the actor's outputs and stds so that the first rollout commands what the checkpoint did: finger
+    means halve (0.015 rad × 0.5 / 0.015 rad × 1), the rotation means quarter, the aim means × 0.25 × 0.05 / 0.08;
+    the ratios are recorded."""
+    from dgz_cli.cli.train_cmd import _load_config
+    from dgz_cli.policy.graph import to_tensors
+
+    source = build(TrainConfig(iterations=1, finger_residual=0.5, wrist_residual=0.25, guidance_gain=0.05,
+                               guidance_aim_residual=0.05, **SMOKE), tmp_path / "src", None)
+    with torch.no_grad():  # outputs well away from zero on every dim
+        source.model.wrist_head[-1].bias.copy_(torch.linspace(-0.6, 0.6, 6))
+        source.model.node_head[-1].bias.fill_(0.4)
+    obs = source.env.reset(0)
+    source.save()
+    source.env.close()
+    cfg = _load_config({"init_from": str(tmp_path / "src"), "finger_residual": 1.0, "wrist_residual": 1.0,
+                        "guidance_aim_residual": 0.08}, None, tmp_path / "ft", resume=False)
+    tuned = build(cfg, tmp_path / "ft", None)
+    t = to_tensors(obs)
+    with torch.no_grad():
+        (old_mean, old_log_std, _), (new_mean, new_log_std, _) = source.model(t), tuned.model(t)
+    expected = np.array([0.25 * 0.05 / 0.08] * 3 + [0.25] * 3)
+    torch.testing.assert_close(new_mean[:, :6], old_mean[:, :6] * torch.as_tensor(expected, dtype=torch.float32))
+    torch.testing.assert_close(new_mean[:, 6:], old_mean[:, 6:] * 0.5)
+    valid = source.model.action_valid(t)
+    ratio = np.concatenate([expected, np.full(old_mean.shape[1] - 6, 0.5)])
+    torch.testing.assert_close((new_log_std - old_log_std)[valid],
+                               torch.log(torch.as_tensor(ratio, dtype=torch.float32)).expand_as(valid)[valid])
+    old_units, new_units = source.env.cfg.contract.action_units(), tuned.env.cfg.contract.action_units()
+    assert old_units[0] == new_units[0] == ("aim",) * 3 + ("velocity",) * 3
+    torch.testing.assert_close(new_mean[:, :6] * torch.as_tensor(new_units[1], dtype=torch.float32),
+                               old_mean[:, :6] * torch.as_tensor(old_units[1], dtype=torch.float32))
+    assert tuned.warm_start["action_rescale"] == dict(wrist=[round(float(x), 6) for x in expected], finger=[0.5])
+    assert bool((old_mean[:, :6] != 0).all()) and bool((old_mean[:, 6:][valid[:, 6:]] != 0).all())
+    tuned.env.close()
+    same = build(_load_config({"init_from": str(tmp_path / "src")}, None, tmp_path / "same", resume=False),
+                 tmp_path / "same", None)
+    assert "action_rescale" not in same.warm_start
+    same.env.close()
+    # a translation that turns from a velocity into an aim shift keeps its weights; the rotation still scales
+    velocity = build(TrainConfig(iterations=1, wrist_residual=0.5, guidance_gain=0.05, **SMOKE), tmp_path / "v", None)
+    velocity.save()
+    velocity.env.close()
+    aimed = build(_load_config({"init_from": str(tmp_path / "v"), "wrist_residual": 1.0, "guidance_aim_residual": 0.08},
+                               None, tmp_path / "va", resume=False), tmp_path / "va", None)
+    assert aimed.warm_start["action_rescale"] == dict(wrist=[1.0] * 3 + [0.5] * 3, finger=[1.0])
+    aimed.env.close()
+
+
 def test_resume_refuses_another_preset(run_dir, tmp_path):
     out, _ = run_dir
     res = _dgz("train", "--hands", "dgz_tri", "--objects", "sphere,box", "--out", str(out), "--resume",

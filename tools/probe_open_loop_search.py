@@ -33,49 +33,70 @@ AIM, POP, ELITE, DELAY_STEPS, ROT_STEPS = 0.08, 20, 5, 100, 60
 FINGER0 = 7  # θ: aim (3), closing delay (1), rotation rate (3), then (FLEX, ABD) per finger
 
 
+class Candidate:
+    """The open-loop residual of one θ: ``action(t)`` (B, action_dim) for the control steps t (B,) of a hand
+    whose fingers are ``finger_masks`` (per finger in θ's order, which of its N nodes (N,) bool belong to it)."""
+
+    def __init__(self, theta: np.ndarray, finger_masks: list[np.ndarray], act, rot: float = 1.0) -> None:
+        n_prim, flex, abd = act.n_prim, PRIMITIVES.index("FLEX"), PRIMITIVES.index("ABD")
+        N = len(finger_masks[0])
+        self.theta, self.act, self.N = theta, act, N
+        self.delay = int(round(np.clip(theta[3], 0, 1) * DELAY_STEPS))
+        closing = np.zeros((N, n_prim))  # the finger actions once the delay is over; before it FLEX is -1
+        for i, on in enumerate(finger_masks):
+            closing[on, abd] = np.clip(theta[FINGER0 + 2 * i + 1], -1, 1)
+            closing[on, flex] = np.clip(theta[FINGER0 + 2 * i], -1, 0)
+        held = closing.copy()
+        held[np.any(finger_masks, axis=0), flex] = -1.0
+        self.closing, self.held = closing.reshape(-1), held.reshape(-1)
+        self.rotation = rot * np.clip(theta[4:7], -1, 1)
+
+    def action(self, t: np.ndarray) -> np.ndarray:
+        a = np.zeros((len(t), self.act.dim(self.N)))
+        a[:, :3] = np.clip(self.theta[:3], -1, 1)
+        a[:, 3:6] = np.where(t[:, None] < ROT_STEPS, self.rotation, 0.0)
+        a[:, self.act.wrist_dim:] = np.where(t[:, None] < self.delay, self.held, self.closing)
+        return a
+
+
+def finger_masks_of(spec) -> tuple[list[str], list[np.ndarray]]:
+    """The hand's finger names (sorted) and per finger which of its nodes (N,) bool belong to it."""
+    node_finger = np.array([(n.finger or "") if n.type != "wrist" else "" for n in spec.nodes], dtype=object)
+    fingers = sorted({f for f in node_finger if f})
+    return fingers, [node_finger == f for f in fingers]
+
+
 def episode_scores(env, theta: np.ndarray, finger_masks: list[np.ndarray], seed: int,
                    rot: float = 1.0) -> tuple[float, float]:
-    """(success rate, mean max rise m) of one candidate θ over every slot of ``env`` (one episode each);
-    ``finger_masks``: per finger (θ's order), which of the N nodes (N,) bool belong to it."""
-    act = env.cfg.contract.action
-    n_prim, flex, abd = act.n_prim, PRIMITIVES.index("FLEX"), PRIMITIVES.index("ABD")
-    obs = env.reset(seed)
-    B, N = obs["node_valid"].shape
-    delay = int(round(np.clip(theta[3], 0, 1) * DELAY_STEPS))
-    closing = np.zeros((N, n_prim))  # the finger actions once the delay is over; before it FLEX is -1
-    for i, on in enumerate(finger_masks):
-        closing[on, abd] = np.clip(theta[FINGER0 + 2 * i + 1], -1, 1)
-        closing[on, flex] = np.clip(theta[FINGER0 + 2 * i], -1, 0)
-    held = closing.copy()
-    held[np.any(finger_masks, axis=0), flex] = -1.0
-    rotation = rot * np.clip(theta[4:7], -1, 1)
+    """(success rate, mean max rise m) of one candidate θ over every slot of ``env`` (one episode each)."""
+    candidate = Candidate(theta, finger_masks, env.cfg.contract.action, rot)
+    env.reset(seed)
+    B = env.B
     done, success, rise = np.zeros(B, bool), np.zeros(B), np.zeros(B)
     while not done.all():
-        a = np.zeros((B, act.dim(N)))
-        a[:, :3] = np.clip(theta[:3], -1, 1)
-        a[:, 3:6] = np.where(env.t[:, None] < ROT_STEPS, rotation, 0.0)
-        a[:, act.wrist_dim:] = np.where(env.t[:, None] < delay, held.reshape(-1), closing.reshape(-1))
-        obs, _, _, _, info = env.step(a)
+        _, _, _, _, info = env.step(candidate.action(env.t))
         for b, ep in info["episode"].items():
             if not done[b]:
                 done[b], success[b], rise[b] = True, ep["success"], ep["max_rise"]
     return float(success.mean()), float(rise.mean())
 
 
+def search_contract(contract, aim: float = AIM):
+    """The contract the search commands in: the checkpoint's, with the residual factors at full authority and
+    the translation an aim shift of up to ``aim`` m."""
+    return contract.model_copy(update=dict(
+        action=contract.action.model_copy(update=dict(finger_residual=1.0, wrist_residual=1.0)),
+        guidance=contract.guidance.model_copy(update=dict(aim_residual=aim))))
+
+
 def main(checkpoint: str, hand: str, obj: str, generations: int = 8, starts: int = 8, seed: int = 0,
          aim: float = AIM, rot: float = 1.0) -> None:
     meta = LoadedPolicy(checkpoint).meta
-    contract = meta.contract
-    contract = contract.model_copy(update=dict(
-        action=contract.action.model_copy(update=dict(finger_residual=1.0, wrist_residual=1.0)),
-        guidance=contract.guidance.model_copy(update=dict(aim_residual=aim))))
-    cfg = meta.env.model_copy(update=dict(contract=contract))
+    cfg = meta.env.model_copy(update=dict(contract=search_contract(meta.contract, aim)))
     spec = load_spec(resolve_spec(hand))
     (model,) = resolve_objects(obj)
     env = make_env([(spec, model)] * starts, cfg, seed=seed)
-    node_finger = np.array([(n.finger or "") if n.type != "wrist" else "" for n in spec.nodes], dtype=object)
-    fingers = sorted({f for f in node_finger if f})
-    masks = [node_finger == f for f in fingers]
+    fingers, masks = finger_masks_of(spec)
     rng = np.random.default_rng(0)
     dim = FINGER0 + 2 * len(fingers)
     mean, std = np.zeros(dim), np.full(dim, 0.5)

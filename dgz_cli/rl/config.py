@@ -151,7 +151,8 @@ class TrainConfig(BaseModel):
     init_from: str | None = Field(None, min_length=1, description="fine-tune: a checkpoint folder or shipped policy "
                                   "whose weights and return scale start the run (same model and control contract, "
                                   "but for the residual factors and the guidance's stop gap, aim residual and "
-                                  "aim axes; None = a fresh network)")
+                                  "aim axes, whose changes rescale the actor so that it starts with the checkpoint's "
+                                  "commands; None = a fresh network)")
     ppo: PPOConfig = PPOConfig()
 
     @field_validator("physics_hz")

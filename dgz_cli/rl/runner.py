@@ -137,6 +137,7 @@ class Trainer:
                                "--init-from takes its run config from the checkpoint; drop the option or --config "
                                f"entry that changes it (only {', '.join(FINE_TUNABLE)} may change)")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+        rescaled = keep_commands(self.model, meta.contract, self.env.cfg.contract)
         if self.model.wrist_is_action and not meta.contract.action.wrist_is_action:
             # the checkpoint's wrist head never had a gradient (its dims were not scored): start the new
             # wrist residual at a zero mean, so the run begins from the checkpoint's behaviour plus exploration
@@ -149,6 +150,8 @@ class Trainer:
             self.reward_norm.load(meta.reward_normalizer.model_dump())
         self.warm_start = dict(teacher="checkpoint", checkpoint=name, checkpoint_iteration=meta.iteration,
                                weights_sha256=meta.weights_sha256, checkpoint_training_hands=sorted(meta.training_hands))
+        if rescaled is not None:
+            self.warm_start["action_rescale"] = rescaled
 
     # ------------------------------------------------------------------ loop
     def train(self) -> None:
@@ -270,6 +273,35 @@ class Trainer:
 RESIDUAL_FACTORS = ("wrist_residual", "wrist_translation_residual", "finger_residual")
 FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + (
     "guidance.stop_gap", "guidance.aim_residual", "guidance.aim_axes")
+
+
+@torch.no_grad()
+def keep_commands(model: MAGCN, old, new) -> dict[str, list[float]] | None:
+    """A fine-tune that changes the residual factors or the aim range (``old`` → ``new`` control contract)
+    starts from the checkpoint's commands: the actor's output layers and log-stds are scaled per action dim by
+    old / new :meth:`ControlContract.action_units`, so mean and exploration command what they did (identical
+    wherever the old command was not clipped). A dim whose kind changes (velocity ↔ aim shift) or whose amount
+    is 0 on either side keeps its weights. Returns the ratios applied ({'wrist': (wrist_dim,), 'finger': [r]})
+    or None when nothing changed."""
+    old_kinds, old_wrist, old_finger = old.action_units()
+    new_kinds, new_wrist, new_finger = new.action_units()
+    wrist = np.ones(len(new_kinds))
+    for i, (ko, kn, ao, an) in enumerate(zip(old_kinds, new_kinds, old_wrist, new_wrist)):
+        if ko == kn and ao > 0 and an > 0:
+            wrist[i] = ao / an
+    finger = old_finger / new_finger if old_finger > 0 and new_finger > 0 else 1.0
+    if np.allclose(wrist, 1.0) and finger == 1.0:
+        return None
+    w = torch.as_tensor(wrist, dtype=torch.float32)
+    head = model.wrist_head[-1]
+    head.weight.mul_(w[:, None])
+    head.bias.mul_(w)
+    model.log_std_wrist.add_(torch.log(w))
+    head = model.node_head[-1]
+    head.weight.mul_(finger)
+    head.bias.mul_(finger)
+    model.log_std_prim.add_(float(np.log(finger)))
+    return dict(wrist=[round(float(x), 6) for x in wrist], finger=[round(float(finger), 6)])
 
 
 def _without_fine_tunable(contract) -> dict:

@@ -343,6 +343,21 @@ class ControlContract(_Frozen):
                              f"distance_clip {self.observation.distance_clip} m (the palm gap is read from d)")
         return self
 
+    def action_units(self) -> tuple[tuple[str, ...], np.ndarray, float]:
+        """What one unit of the policy's own action commands before the [-1, 1] clip: (kinds (wrist_dim,),
+        amounts (wrist_dim,), finger amount). A wrist dim is an ``"aim"`` shift of the guidance's target (m, a
+        translation dim on an ``aim_axes`` axis under ``guidance.aim_residual``) or a ``"velocity"`` (m or rad
+        per control step); the finger amount is in rad per step. Two contracts whose kinds agree command the same
+        thing from actions that differ by the ratio of the amounts (up to the clip)."""
+        act, aim = self.action, self.guidance.aim_residual
+        kinds = ["velocity"] * act.wrist_dim
+        amounts = np.full(act.wrist_dim, act.wrist_residual * act.wrist_scale)
+        for i, factor in enumerate(act.translation_factors):
+            on_aim = aim is not None and self.guidance.aim_axes[i]
+            kinds[i] = "aim" if on_aim else "velocity"
+            amounts[i] = factor * (aim if on_aim else act.wrist_scale)
+        return tuple(kinds), amounts, act.finger_residual * act.finger_scale
+
     def wrist_nodes(self, nodes: np.ndarray, node_valid: np.ndarray) -> np.ndarray:
         """(B, N) bool: the valid nodes whose ``node_type`` block marks the wrist, in an observation's nodes
         (B, N, node_dim) and node_valid (B, N)."""
