@@ -108,13 +108,13 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
             if not line.startswith("{"):
                 continue
             s = json.loads(line)
-            if s["best"] < 1.0 or s["starts"] != 1 or s["aim"] != AIM:
+            if s["best"] < 1.0 or s["starts"] != 1 or s.get("aim", AIM) != AIM:
                 continue
             spec = load_spec(resolve_spec(s["hand"]))
             (obj,) = resolve_objects(s["object"])
             env = make_env([(spec, obj)], cfg, seed=s["seed"])
             env.seed = s["seed"]
-            candidate = Candidate(np.array(s["best_theta"]), finger_masks_of(spec)[1], contract.action, s["rot"])
+            candidate = Candidate(np.array(s["best_theta"]), finger_masks_of(spec)[1], contract.action, s.get("rot", 1.0))
             steps, actions, eps, static = record(env, lambda obs, t: candidate.action(t))
             env.close()
             ok = eps[0]["success"]
