@@ -29,13 +29,14 @@ from dgz_cli.rl import checkpoint
 from dgz_cli.rl.bc import Demonstrations, pretrain
 from dgz_cli.rl.config import env_config
 from dgz_cli.rl.runner import keep_commands
+from dgz_cli.rl.storage import STATIC_KEYS
 from dgz_cli.sim.evaluate import make_env
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.io import load_spec
 
 ANCHOR_HANDS, ANCHOR_SEED = ("allegro", "shadow", "schunk_svh", "ability"), 4711
-STATIC = ("adjacency", "physical", "mask", "node_valid")
+STATIC = STATIC_KEYS
 
 
 def record(env, act) -> tuple[list[dict], np.ndarray, list[dict], dict]:

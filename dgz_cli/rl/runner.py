@@ -25,6 +25,7 @@ from dgz_cli.rl.normalize import ReturnNormalizer
 from dgz_cli.rl.ppo import PPO
 from dgz_cli.rl.stop import StopRequest
 from dgz_cli.rl.storage import RolloutStorage
+from dgz_cli.spec.contract import ControlContract
 from dgz_cli.spec.errors import DgzError
 from dgz_cli.spec.io import atomic_write_bytes
 
@@ -276,7 +277,7 @@ FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + (
 
 
 @torch.no_grad()
-def keep_commands(model: MAGCN, old, new) -> dict[str, list[float]] | None:
+def keep_commands(model: MAGCN, old: ControlContract, new: ControlContract) -> dict[str, list[float]] | None:
     """A fine-tune that changes the residual factors or the aim range (``old`` → ``new`` control contract)
     starts from the checkpoint's commands: the actor's output layers and log-stds are scaled per action dim by
     old / new :meth:`ControlContract.action_units`, so mean and exploration command what they did (identical
