@@ -4,7 +4,9 @@ from every start of the log, in the search's contract and the checkpoint's env (
 
 `DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/probe_cross_starts.py CHECKPOINT SEARCH_LOG...` (from
 the repo root; the logs of one hand and object) prints the matrix (row: the start, column: whose residual; 1 = lifted) and one JSON line: the replays on
-their own start, the mean off-diagonal lift rate, and how many starts some other start's residual lifts."""
+their own start, the mean off-diagonal lift rate, how many starts some other start's residual lifts, and the
+residual that lifts from the most starts. With `--heldout N` that residual and the prior alone also run from N
+other starts (one N-slot env, seed 5000): the out-of-sample check of the choice."""
 import json
 import sys
 from pathlib import Path
@@ -20,7 +22,10 @@ from dgz_cli.spec.catalog import resolve_spec
 from dgz_cli.spec.io import load_spec
 
 
-def main(checkpoint: str, logs: list[str]) -> None:
+HELDOUT_SEED = 5000
+
+
+def main(checkpoint: str, logs: list[str], heldout: int = 0) -> None:
     lines = [json.loads(x) for log in logs for x in Path(log).read_text().splitlines() if x.startswith("{")]
     lines = [x for x in lines if x["starts"] == 1]
     hand, obj = lines[0]["hand"], lines[0]["object"]
@@ -40,12 +45,27 @@ def main(checkpoint: str, logs: list[str]) -> None:
         print(f"start {seed:3d}: " + "".join("1" if v else "." for v in lifted[i]), flush=True)
     own = [lifted[seeds.index(x["seed"]), j] for j, x in enumerate(found)]
     other = np.array([[x["seed"] != s for x in found] for s in seeds])  # (starts, residuals): not its own
+    best = int(np.argmax(lifted.mean(axis=0)))
+    fresh = {}
+    if heldout:  # the best residual, chosen on these starts, and the prior alone on HELDOUT other starts
+        env = make_env([(spec, model)] * heldout, cfg, seed=HELDOUT_SEED)
+        fresh = dict(heldout=heldout, heldout_best=episode_scores(env, np.array(found[best]["best_theta"]), masks,
+                                                                  HELDOUT_SEED, found[best].get("rot", 1.0))[0],
+                     heldout_prior=episode_scores(env, np.zeros(len(found[best]["best_theta"])), masks,
+                                                  HELDOUT_SEED)[0])
+        env.close()
     print(json.dumps(dict(hand=hand, object=obj, starts=len(seeds), residuals=len(found),
                           own_start=float(np.sum(own)), off_diagonal_rate=round(float(lifted[other].mean()), 3),
-                          starts_lifted_by_another=int(((lifted * other).max(axis=1) > 0).sum()))), flush=True)
+                          starts_lifted_by_another=int(((lifted * other).max(axis=1) > 0).sum()),
+                          best_residual_seed=found[best]["seed"], best_residual_rate=round(float(lifted[:, best].mean()), 3),
+                          **fresh)), flush=True)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 3:
+    args = sys.argv[1:]
+    heldout = int(args.pop(args.index("--heldout") + 1)) if "--heldout" in args else 0
+    if "--heldout" in args:
+        args.remove("--heldout")
+    if len(args) < 2:
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2:])
+    main(args[0], args[1:], heldout)
