@@ -42,7 +42,7 @@ STATIC = STATIC_KEYS
 def record(env, act) -> tuple[list[dict], np.ndarray, list[dict], dict]:
     """One episode in every slot of ``env``, acting ``act(obs, t)`` (B, A): per step the observation's nodes and
     global, the actions (T, B, A), each slot's first episode record and the static observation keys."""
-    obs = env.reset(env.seed)
+    obs = env.reset()  # the seed the env was built with
     steps, actions, first = [], [], {}
     for _ in range(env.cfg.contract.episode.episode_steps):
         a = act(obs, env.t.copy())
@@ -114,7 +114,6 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
             spec = load_spec(resolve_spec(s["hand"]))
             (obj,) = resolve_objects(s["object"])
             env = make_env([(spec, obj)], cfg, seed=s["seed"])
-            env.seed = s["seed"]
             candidate = Candidate(np.array(s["best_theta"]), finger_masks_of(spec)[1], contract.action, s.get("rot", 1.0))
             steps, actions, eps, static = record(env, lambda obs, t: candidate.action(t))
             env.close()
@@ -126,7 +125,6 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
                 n_max = max(n_max, static["node_valid"].shape[1])
     pairs = [(load_spec(resolve_spec(h)), o) for h in ANCHOR_HANDS for o in resolve_objects("ycb45")]
     env = make_env(pairs, cfg, seed=ANCHOR_SEED)
-    env.seed = ANCHOR_SEED
     steps, actions, eps, static = record(env, lambda obs, t: model.act(to_tensors(obs)).numpy())
     env.close()
     anchor_success = float(np.mean([e["success"] for e in eps]))
