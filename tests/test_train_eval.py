@@ -177,12 +177,16 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     assert bool(tuned.model.action_valid(t)[:, :wrist].all()) and torch.count_nonzero(new_mean[:, :wrist]) == 0
     assert torch.count_nonzero(kept_head) == 0  # the 0.3 bias is not carried over
     torch.testing.assert_close(new_mean[:, wrist:], old_mean[:, wrist:], rtol=0, atol=0)  # the fingers act as before
+    assert tuned.warm_start["action_rescale"]["started_at_zero"] == list(range(wrist))
+    torch.testing.assert_close(tuned.model.log_std_wrist, torch.full((wrist,), tuned.model.cfg.init_log_std))
     tuned.env.close()
     # the translation factor alone is a residual factor too: a fine-tune may set it
     cfg = _load_config({"init_from": str(tmp_path / "src"), "wrist_residual": 0.25, "wrist_translation_residual": 0.0},
                        None, tmp_path / "ft2", resume=False)
     tuned2 = build(cfg, tmp_path / "ft2", None)
     assert tuned2.env.cfg.contract.action.translation_factors == (0.0, 0.0, 0.0) and tuned2.model.wrist_is_action
+    assert tuned2.warm_start["action_rescale"]["started_at_zero"] == [3, 4, 5]  # the translation still commands nothing
+    assert float(tuned2.model.wrist_head[-1].bias[0]) == pytest.approx(0.3)
     tuned2.env.close()
     # so is the guidance's stop gap (how the wrist command is composed, not what a tensor means)
     cfg = _load_config({"init_from": str(tmp_path / "src"), "guidance_stop_gap": 0.05}, None, tmp_path / "ft3",

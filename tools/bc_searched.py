@@ -1,7 +1,10 @@
 """Behaviour cloning of searched grasps into a checkpoint (issue 11, rung E47): the demonstrations are the
 per-start open-loop residuals that ``tools/probe_open_loop_search.py`` found (one JSON line per search, ``best``
 1.0 = the searched residual lifted the object from that start), replayed from the same start in the search's
-contract (the checkpoint's, with ``finger_residual`` and ``wrist_residual`` 1.0 and the aim range AIM); the
+contract (the checkpoint's, with ``finger_residual`` and ``wrist_residual`` 1.0 and the aim range AIM). A line
+of ``tools/pick_pair_residuals.py`` (one residual per pair, with ``demo_starts`` and ``demo_seed``) instead gives
+the episodes in which that one residual lifts the object from ``demo_starts`` starts (one env, seed ``demo_seed``),
+so that a pair's demonstrations agree with each other. The
 anchor is the checkpoint's own mean action on one episode per (training hand, object) slot, so that what it
 already grasps is kept.
 
@@ -11,7 +14,8 @@ demonstrations repeated REPEAT times), and the result is written as a checkpoint
 ``dgz eval`` and ``dgz train --init-from`` take as is.
 
 `DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/bc_searched.py CHECKPOINT OUT EPOCHS LR REPEAT
-SEARCH_LOG...` (run from the repo root) prints the replay check of every demonstration, the losses before and
+SEARCH_LOG... [--anchor-hands H,H,...]` (run from the repo root; the anchor's hands default to the four training
+hands and take what ``dgz train --hands`` takes, ``generated:DIR`` included) prints the replay check of every demonstration, the losses before and
 after on demonstrations and anchor separately, and writes OUT."""
 import json
 import sys
@@ -23,6 +27,7 @@ import torch
 
 from probe_open_loop_search import AIM, Candidate, finger_masks_of, search_contract
 
+from dgz_cli.cli.hand_refs import hand_specs
 from dgz_cli.policy.graph import to_tensors
 from dgz_cli.policy.magcn import MAGCN
 from dgz_cli.rl import checkpoint
@@ -53,6 +58,13 @@ def record(env, act) -> tuple[list[dict], np.ndarray, list[dict], dict]:
             first.setdefault(b, ep)
     static = {k: np.array(obs[k]) for k in STATIC}
     return steps, np.stack(actions), [first[b] for b in range(env.B)], static
+
+
+def slots(part: tuple[list[dict], np.ndarray, dict], keep: list[int]) -> tuple[list[dict], np.ndarray, dict]:
+    """The recorded slots ``keep`` of one recording (steps, actions (T, B, A), static)."""
+    steps, actions, static = part
+    return ([{k: v[keep] for k, v in s.items()} for s in steps], actions[:, keep],
+            {k: v[keep] for k, v in static.items()})
 
 
 def to_demos(parts: list[tuple[list[dict], np.ndarray, dict]], n_max: int) -> Demonstrations:
@@ -91,7 +103,8 @@ def action_loss(model, demos: Demonstrations) -> float:
     return tot / cnt
 
 
-def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[str]) -> None:
+def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[str],
+         anchor_hands: tuple[str, ...] = ANCHOR_HANDS) -> None:
     t0 = time.time()
     torch.manual_seed(0)
     tensors, meta = checkpoint.load(Path(source))
@@ -109,28 +122,31 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
             if not line.startswith("{"):
                 continue
             s = json.loads(line)
-            if s["best"] < 1.0 or s["starts"] != 1 or s.get("aim", AIM) != AIM:
+            picked = "demo_starts" in s  # a tools/pick_pair_residuals.py line: one residual from many starts
+            if not picked and (s["best"] < 1.0 or s["starts"] != 1 or s.get("aim", AIM) != AIM):
                 continue
             spec = load_spec(resolve_spec(s["hand"]))
             (obj,) = resolve_objects(s["object"])
-            env = make_env([(spec, obj)], cfg, seed=s["seed"])
+            starts, seed = (s["demo_starts"], s["demo_seed"]) if picked else (1, s["seed"])
+            env = make_env([(spec, obj)] * starts, cfg, seed=seed)
             candidate = Candidate(np.array(s["best_theta"]), finger_masks_of(spec)[1], contract.action, s.get("rot", 1.0))
             steps, actions, eps, static = record(env, lambda obs, t: candidate.action(t))
             env.close()
-            ok = eps[0]["success"]
-            print(f"replay {s['hand']} {s['object']} seed {s['seed']}: {'lifted' if ok else 'NOT lifted'}", flush=True)
+            ok = [b for b in range(starts) if eps[b]["success"]]
+            print(f"replay {s['hand']} {s['object']} seed {seed}: lifted from {len(ok)} of {starts}", flush=True)
             if ok:
-                demos.append((steps, actions, static))
-                kept.append(f"{s['hand']}/{s['object']}/{s['seed']}")
+                demos.append(slots((steps, actions, static), ok))
+                kept.append(f"{s['hand']}/{s['object']}/{seed}" + (f"/{len(ok)}of{starts}" if picked else ""))
                 n_max = max(n_max, static["node_valid"].shape[1])
-    pairs = [(load_spec(resolve_spec(h)), o) for h in ANCHOR_HANDS for o in resolve_objects("ycb45")]
+    specs = hand_specs(anchor_hands, None, "--anchor-hands")
+    pairs = [(load_spec(p), o) for p in specs.values() for o in resolve_objects("ycb45")]
     env = make_env(pairs, cfg, seed=ANCHOR_SEED)
     steps, actions, eps, static = record(env, lambda obs, t: model.act(to_tensors(obs)).numpy())
     env.close()
     anchor_success = float(np.mean([e["success"] for e in eps]))
     n_max = max(n_max, static["node_valid"].shape[1])
-    print(f"anchor: {len(pairs)} slots, the rescaled checkpoint lifts {anchor_success:.3f}; {len(demos)} "
-          f"demonstrations; {time.time() - t0:.0f} s", flush=True)
+    print(f"anchor: {len(pairs)} slots, the rescaled checkpoint lifts {anchor_success:.3f}; "
+          f"{sum(a.shape[1] for _, a, _ in demos)} demonstrations from {len(demos)} recordings; {time.time() - t0:.0f} s", flush=True)
     anchor_set = to_demos([(steps, actions, static)], n_max)
     demo_set = to_demos(demos, n_max) if demos else None
     losses = lambda: (action_loss(model, demo_set) if demos else float("nan"), action_loss(model, anchor_set))
@@ -144,7 +160,7 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
                                               init_from=source))
     warm = dict(teacher="searched grasps", checkpoint=source, checkpoint_iteration=meta.iteration,
                 weights_sha256=meta.weights_sha256, demonstrations=kept, repeat=repeat, epochs=epochs,
-                learning_rate=lr, anchor_slots=len(pairs), anchor_seed=ANCHOR_SEED, action_rescale=ratios,
+                learning_rate=lr, anchor_hands=sorted(specs), anchor_slots=len(pairs), anchor_seed=ANCHOR_SEED, action_rescale=ratios,
                 mse_before=[round(x, 5) for x in before], mse_after=[round(x, 5) for x in after])
     if env_config(train).contract != contract:
         raise SystemExit("the run config does not give the search's contract")
@@ -156,6 +172,12 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 7:
+    args = sys.argv[1:]
+    anchor = ANCHOR_HANDS
+    if "--anchor-hands" in args:
+        i = args.index("--anchor-hands")
+        anchor = tuple(args[i + 1].split(","))
+        del args[i:i + 2]
+    if len(args) < 6:
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), sys.argv[6:])
+    main(args[0], args[1], int(args[2]), float(args[3]), int(args[4]), args[5:], anchor)

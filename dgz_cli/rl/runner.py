@@ -139,14 +139,6 @@ class Trainer:
                                f"entry that changes it (only {', '.join(FINE_TUNABLE)} may change)")
         self.model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
         rescaled = keep_commands(self.model, meta.contract, self.env.cfg.contract)
-        if self.model.wrist_is_action and not meta.contract.action.wrist_is_action:
-            # the checkpoint's wrist head never had a gradient (its dims were not scored): start the new
-            # wrist residual at a zero mean, so the run begins from the checkpoint's behaviour plus exploration
-            last = self.model.wrist_head[-1]
-            with torch.no_grad():
-                last.weight.zero_()
-                last.bias.zero_()
-                self.model.log_std_wrist.fill_(self.model.cfg.init_log_std)
         if meta.reward_normalizer is not None:
             self.reward_norm.load(meta.reward_normalizer.model_dump())
         self.warm_start = dict(teacher="checkpoint", checkpoint=name, checkpoint_iteration=meta.iteration,
@@ -277,13 +269,15 @@ FINE_TUNABLE = tuple(f"action.{k}" for k in RESIDUAL_FACTORS) + (
 
 
 @torch.no_grad()
-def keep_commands(model: MAGCN, old: ControlContract, new: ControlContract) -> dict[str, list[float]] | None:
+def keep_commands(model: MAGCN, old: ControlContract, new: ControlContract) -> dict[str, list] | None:
     """A fine-tune that changes the residual factors or the aim range (``old`` → ``new`` control contract)
     starts from the checkpoint's commands: the actor's output layers and log-stds are scaled per action dim by
     old / new :meth:`ControlContract.action_units`, so mean and exploration command what they did (identical
-    wherever the old command was not clipped). A dim whose kind changes (velocity ↔ aim shift) or whose amount
-    is 0 on either side keeps its weights. Returns the ratios applied ({'wrist': (wrist_dim,), 'finger': [r]})
-    or None when nothing changed."""
+    wherever the old command was not clipped). A dim whose amount was 0 in the checkpoint commanded nothing, so
+    its output was never shaped by a consequence: it starts at a zero mean and the model's initial log-std. A
+    dim whose kind changes (velocity ↔ aim shift) or whose new amount is 0 keeps its weights. Returns what was
+    applied ({'wrist': ratios (wrist_dim,), 'finger': [ratio]}, plus 'started_at_zero': the wrist dims and
+    'fingers' that start at zero) or None when nothing changed."""
     old_kinds, old_wrist, old_finger = old.action_units()
     new_kinds, new_wrist, new_finger = new.action_units()
     wrist = np.ones(len(new_kinds))
@@ -291,18 +285,29 @@ def keep_commands(model: MAGCN, old: ControlContract, new: ControlContract) -> d
         if ko == kn and ao > 0 and an > 0:
             wrist[i] = ao / an
     finger = old_finger / new_finger if old_finger > 0 and new_finger > 0 else 1.0
-    if np.allclose(wrist, 1.0) and finger == 1.0:
+    zero_wrist = [i for i, (ao, an) in enumerate(zip(old_wrist, new_wrist)) if ao == 0 and an > 0]
+    zero_fingers = old_finger == 0 and new_finger > 0
+    if np.allclose(wrist, 1.0) and finger == 1.0 and not zero_wrist and not zero_fingers:
         return None
     w = torch.as_tensor(wrist, dtype=torch.float32)
     head = model.wrist_head[-1]
     head.weight.mul_(w[:, None])
     head.bias.mul_(w)
     model.log_std_wrist.add_(torch.log(w))
+    head.weight[zero_wrist] = 0.0
+    head.bias[zero_wrist] = 0.0
+    model.log_std_wrist[zero_wrist] = model.cfg.init_log_std
     head = model.node_head[-1]
-    head.weight.mul_(finger)
-    head.bias.mul_(finger)
-    model.log_std_prim.add_(float(np.log(finger)))
-    return dict(wrist=[round(float(x), 6) for x in wrist], finger=[round(float(finger), 6)])
+    head.weight.mul_(0.0 if zero_fingers else finger)
+    head.bias.mul_(0.0 if zero_fingers else finger)
+    if zero_fingers:
+        model.log_std_prim.fill_(model.cfg.init_log_std)
+    else:
+        model.log_std_prim.add_(float(np.log(finger)))
+    applied: dict[str, list] = dict(wrist=[round(float(x), 6) for x in wrist], finger=[round(float(finger), 6)])
+    if zero_wrist or zero_fingers:
+        applied["started_at_zero"] = zero_wrist + (["fingers"] if zero_fingers else [])
+    return applied
 
 
 def _without_fine_tunable(contract) -> dict:
