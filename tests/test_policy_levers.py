@@ -693,3 +693,28 @@ def test_a_scaled_finger_force_limit_is_the_force_the_joint_gets(factor):
         mujoco.mj_forward(m, d)
         assert abs(d.qfrc_actuator[dof]) == pytest.approx(scale * effort, rel=1e-6)
     env.close()
+
+
+def test_keep_commands_starts_fingers_that_commanded_nothing_at_zero():
+    """A checkpoint trained with ``finger_residual`` 0 never commanded its fingers: a fine-tune that turns them on
+    starts their output layer at zero and their log-std at the initial value, and leaves the wrist as it was;
+    going back to 0 keeps the weights (nothing to keep the command of)."""
+    from dgz_cli.rl.runner import keep_commands
+
+    torch.manual_seed(0)
+    off = ControlContract(action=ActionLayout(finger_residual=0.0))
+    on = ControlContract(action=ActionLayout(finger_residual=0.5))
+    m = MAGCN(TINY, off)
+    with torch.no_grad():
+        m.node_head[-1].bias.fill_(0.4)
+        m.log_std_prim.fill_(-2.0)
+    wrist_before = [p.clone() for p in (m.wrist_head[-1].weight, m.wrist_head[-1].bias, m.log_std_wrist)]
+    applied = keep_commands(m, off, on)
+    assert applied == dict(wrist=[1.0] * 6, finger=[1.0], started_at_zero=["fingers"])
+    assert torch.count_nonzero(m.node_head[-1].weight) == 0 and torch.count_nonzero(m.node_head[-1].bias) == 0
+    assert torch.all(m.log_std_prim == TINY.init_log_std)
+    for before, after in zip(wrist_before, (m.wrist_head[-1].weight, m.wrist_head[-1].bias, m.log_std_wrist)):
+        assert torch.equal(before, after)
+    with torch.no_grad():
+        m.node_head[-1].bias.fill_(0.4)
+    assert keep_commands(m, on, off) is None and torch.all(m.node_head[-1].bias == 0.4)
