@@ -220,3 +220,32 @@ def test_env_priority_from_pair_success_emas_by_hand():
     w = Trainer.env_priority(me, [ep("a", "x", False)])
     np.testing.assert_allclose(w[0], 1 - (1 - PAIR_EMA) + 0.1)
     assert me.pair_success == {"a/x": pytest.approx(1 - PAIR_EMA), "a/y": 0.0}
+
+
+@pytest.mark.parametrize("critic", [None, (8, 8)])
+def test_a_critic_only_update_fits_the_value_and_leaves_the_actor(critic):
+    """``critic_only`` steps move only the value head (and a separate critic's trunk): every other parameter,
+    hence the actor's mean and std, is bit-identical, the value loss falls and the adaptive learning rate is not
+    stepped; a normal update afterwards moves the actor again."""
+    torch.manual_seed(0)
+    m = MAGCN(TINY.model_copy(update=dict(critic_widths=critic)))
+    ppo = PPO(m, learning_rate=3e-3)
+    obs_t = to_tensors(toy_obs(32))
+    critic_ids = {id(p) for p in m.critic_parameters()}
+    assert critic_ids and len(critic_ids) < len(list(m.parameters()))
+    actor0 = {n: p.detach().clone() for n, p in m.named_parameters() if id(p) not in critic_ids}
+    value0 = {n: p.detach().clone() for n, p in m.named_parameters() if id(p) in critic_ids}
+    st = _bandit_round(ppo, obs_t)
+    ppo.compute_returns(st, obs_t)
+    returns = st.returns.clone()  # (T, B)
+    mse = lambda: float(((ppo.value(obs_t)[None] - returns) ** 2).mean())
+    before = mse()
+    stats = ppo.update(st, critic_only=True)
+    assert mse() < before and stats["learning_rate"] == 3e-3
+    for n, p in m.named_parameters():
+        if id(p) in critic_ids:
+            assert not torch.equal(p, value0[n]), n
+        else:
+            assert torch.equal(p, actor0[n]), n
+    ppo.update(_bandit_round(ppo, obs_t), ppo.value(obs_t))
+    assert not torch.equal(m.log_std_wrist, actor0["log_std_wrist"])

@@ -154,6 +154,11 @@ class MAGCN(nn.Module):
             av[:, :self.wrist_dim] = False
         return av
 
+    def critic_parameters(self) -> list[nn.Parameter]:
+        """The parameters only the value depends on: the value head, and the critic's own trunk if separate."""
+        critic = list(self.critic.parameters()) if self.cfg.critic_widths is not None else []
+        return list(self.value_head.parameters()) + critic
+
     @torch.no_grad()
     def clamp_log_std(self, minimum: float | None = None, maximum: float | None = None) -> None:
         """Exploration bounds: no log-std parameter below ``minimum`` or above ``maximum`` (None: unbounded)."""

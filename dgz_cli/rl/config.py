@@ -118,6 +118,9 @@ class TrainConfig(BaseModel):
                                    "displacement during the grasp phase / push_limit) (0 = off)")
     critic: Literal["shared", "separate"] = Field("shared", description="value head on the actor's trunk (the "
                                                   "paper), or a separate small critic (its own 32×4 GCN trunk)")
+    critic_warmup: int = Field(0, ge=0, le=100, description="the run's first iterations fit the value alone (the "
+                               "actor, a shared trunk included, does not move): for fine-tuning a checkpoint whose "
+                               "critic does not match its actor, e.g. one whose actions were cloned")
     failure_priority: float | None = Field(None, gt=0, le=10, description="prioritised sampling of failing (hand, "
                                            "object) pairs: PPO mini-batches draw an env's transitions ∝ (1 − its pair's "
                                            "success EMA) + this floor; None = uniform")

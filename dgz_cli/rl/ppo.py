@@ -105,11 +105,14 @@ class PPO:
         """Bootstrap from V(last_obs) and fill ``storage.advantages`` / ``storage.returns``."""
         storage.compute_returns(self.value(last_obs), self.cfg.gamma, self.cfg.lam)
 
-    def update(self, storage: RolloutStorage, last_value: torch.Tensor | None = None) -> dict[str, float]:
+    def update(self, storage: RolloutStorage, last_value: torch.Tensor | None = None,
+               critic_only: bool = False) -> dict[str, float]:
         """``num_epochs`` × ``num_mini_batches`` gradient steps; returns mean losses, KL, clip fraction, final lr.
 
         ``last_value`` (B,) = V(s_T) computes the returns here; without it :meth:`compute_returns` must have
-        been called. The storage is cleared afterwards.
+        been called. The storage is cleared afterwards. ``critic_only``: the steps fit the value alone (only
+        :meth:`MAGCN.critic_parameters` move, the learning-rate schedule is not stepped), so the actor's
+        behaviour is unchanged.
         """
         c = self.cfg
         if last_value is not None:
@@ -131,7 +134,7 @@ class PPO:
                         kl = gaussian_kl(mb.old_mean, mb.old_log_std, mean, log_std, av).mean()
                     else:  # k3 estimator of KL(old ‖ new)
                         kl = ((ratio - 1.0) - log_ratio).mean()
-                if self.schedule is not None:
+                if self.schedule is not None and not critic_only:
                     self.set_learning_rate(self.schedule.step(kl.item()))
                 adv = mb.advantages
                 surrogate = -torch.min(ratio * adv, ratio.clamp(1.0 - c.clip_param, 1.0 + c.clip_param) * adv).mean()
@@ -142,7 +145,14 @@ class PPO:
                     value_loss = ((value - mb.returns) ** 2).mean()
                 loss = surrogate + c.value_loss_coef * value_loss - c.entropy_coef * entropy
                 self.optimizer.zero_grad(set_to_none=True)
-                loss.backward()
+                if critic_only:
+                    (c.value_loss_coef * value_loss).backward()
+                    critic = {id(p) for p in self.policy.critic_parameters()}
+                    for p in self.policy.parameters():
+                        if id(p) not in critic:
+                            p.grad = None
+                else:
+                    loss.backward()
                 grad_norm = nn.utils.clip_grad_norm_(self.policy.parameters(), c.max_grad_norm)
                 self.optimizer.step()
                 self.enforce_std_bounds()

@@ -242,7 +242,7 @@ class Trainer:
         tu = time.perf_counter()
         torch.set_num_threads(self.cfg.torch_threads)
         self.model.train()
-        stats = self.ppo.update(self.storage, last_value)
+        stats = self.ppo.update(self.storage, last_value, critic_only=self.iteration < self.cfg.critic_warmup)
         update_s = time.perf_counter() - tu
         self.iteration += 1
         wall = time.perf_counter() - t0
