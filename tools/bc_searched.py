@@ -15,8 +15,8 @@ demonstrations repeated REPEAT times), and the result is written as a checkpoint
 
 `DGZ_ASSET_ROOT=../shared/assets .venv/bin/python tools/bc_searched.py CHECKPOINT OUT EPOCHS LR REPEAT
 SEARCH_LOG... [--anchor-hands H,H,...]` (run from the repo root; the anchor's hands default to the four training
-hands and take what ``dgz train --hands`` takes, ``generated:DIR`` included) prints the replay check of every demonstration, the losses before and
-after on demonstrations and anchor separately, and writes OUT."""
+hands and take what ``dgz train --hands`` takes, ``generated:DIR`` included) prints the replay check of every
+demonstration, the losses before and after on demonstrations and anchor separately, and writes OUT."""
 import json
 import sys
 import time
