@@ -186,7 +186,7 @@ def test_init_from_may_turn_on_a_wrist_residual_starting_at_zero(tmp_path):
     tuned2 = build(cfg, tmp_path / "ft2", None)
     assert tuned2.env.cfg.contract.action.translation_factors == (0.0, 0.0, 0.0) and tuned2.model.wrist_is_action
     assert tuned2.warm_start["action_rescale"]["started_at_zero"] == [3, 4, 5]  # the translation still commands nothing
-    assert float(tuned2.model.wrist_head[-1].bias[0]) == pytest.approx(0.3)
+    assert float(tuned2.model.wrist_head[-1].bias[0].detach()) == pytest.approx(0.3)
     tuned2.env.close()
     # so is the guidance's stop gap (how the wrist command is composed, not what a tensor means)
     cfg = _load_config({"init_from": str(tmp_path / "src"), "guidance_stop_gap": 0.05}, None, tmp_path / "ft3",
