@@ -17,7 +17,6 @@ demonstrations repeated REPEAT times), and the result is written as a checkpoint
 SEARCH_LOG... [--anchor-hands H,H,...]` (run from the repo root; the anchor's hands default to the four training
 hands and take what ``dgz train --hands`` takes, ``generated:DIR`` included) prints the replay check of every
 demonstration, the losses before and after on demonstrations and anchor separately, and writes OUT."""
-import json
 import sys
 import time
 from pathlib import Path
@@ -25,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from probe_open_loop_search import AIM, Candidate, finger_masks_of, search_contract
+from probe_open_loop_search import AIM, Candidate, finger_masks_of, lifted_per_start, search_contract, search_lines
 
 from dgz_cli.cli.hand_refs import hand_specs
 from dgz_cli.policy.graph import to_tensors
@@ -117,27 +116,23 @@ def main(source: str, out: str, epochs: int, lr: float, repeat: int, logs: list[
     print(f"rescaled to the search's contract: {ratios}", flush=True)
 
     demos, kept, n_max = [], [], 0
-    for log in logs:
-        for line in Path(log).read_text().splitlines():
-            if not line.startswith("{"):
-                continue
-            s = json.loads(line)
-            picked = "demo_starts" in s  # a tools/pick_pair_residuals.py line: one residual from many starts
-            if not picked and (s["best"] < 1.0 or s["starts"] != 1 or s.get("aim", AIM) != AIM):
-                continue
-            spec = load_spec(resolve_spec(s["hand"]))
-            (obj,) = resolve_objects(s["object"])
-            starts, seed = (s["demo_starts"], s["demo_seed"]) if picked else (1, s["seed"])
-            env = make_env([(spec, obj)] * starts, cfg, seed=seed)
-            candidate = Candidate(np.array(s["best_theta"]), finger_masks_of(spec)[1], contract.action, s.get("rot", 1.0))
-            steps, actions, eps, static = record(env, lambda obs, t: candidate.action(t))
-            env.close()
-            ok = [b for b in range(starts) if eps[b]["success"]]
-            print(f"replay {s['hand']} {s['object']} seed {seed}: lifted from {len(ok)} of {starts}", flush=True)
-            if ok:
-                demos.append(slots((steps, actions, static), ok))
-                kept.append(f"{s['hand']}/{s['object']}/{seed}" + (f"/{len(ok)}of{starts}" if picked else ""))
-                n_max = max(n_max, static["node_valid"].shape[1])
+    for s in search_lines(logs):
+        picked = "demo_starts" in s  # a tools/pick_pair_residuals.py line: one residual from many starts
+        if not picked and not lifted_per_start(s):
+            continue
+        spec = load_spec(resolve_spec(s["hand"]))
+        (obj,) = resolve_objects(s["object"])
+        starts, seed = (s["demo_starts"], s["demo_seed"]) if picked else (1, s["seed"])
+        env = make_env([(spec, obj)] * starts, cfg, seed=seed)
+        candidate = Candidate(np.array(s["best_theta"]), finger_masks_of(spec)[1], contract.action, s.get("rot", 1.0))
+        steps, actions, eps, static = record(env, lambda obs, t: candidate.action(t))
+        env.close()
+        ok = [b for b in range(starts) if eps[b]["success"]]
+        print(f"replay {s['hand']} {s['object']} seed {seed}: lifted from {len(ok)} of {starts}", flush=True)
+        if ok:
+            demos.append(slots((steps, actions, static), ok))
+            kept.append(f"{s['hand']}/{s['object']}/{seed}" + (f"/{len(ok)}of{starts}" if picked else ""))
+            n_max = max(n_max, static["node_valid"].shape[1])
     specs = hand_specs(anchor_hands, None, "--anchor-hands")
     pairs = [(load_spec(p), o) for p in specs.values() for o in resolve_objects("ycb45")]
     env = make_env(pairs, cfg, seed=ANCHOR_SEED)

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from probe_open_loop_search import AIM, episode_scores, finger_masks_of, search_contract
+from probe_open_loop_search import (AIM, episode_scores, finger_masks_of, lifted_per_start, search_contract,
+                                    search_lines)
 
 from dgz_cli.rl.checkpoint import LoadedPolicy
 from dgz_cli.sim.evaluate import make_env
@@ -32,11 +33,8 @@ def main(checkpoint: str, out: str, logs: list[str]) -> None:
     meta = LoadedPolicy(checkpoint).meta
     cfg = meta.env.model_copy(update=dict(contract=search_contract(meta.contract, AIM)))
     found = defaultdict(dict)  # (hand, object) -> seed -> line
-    for log in logs:
-        for line in Path(log).read_text().splitlines():
-            s = json.loads(line) if line.startswith("{") else None
-            if s and s["starts"] == 1 and s["best"] >= 1.0 and s.get("aim", AIM) == AIM:
-                found[(s["hand"], s["object"])].setdefault(s["seed"], s)
+    for s in filter(lifted_per_start, search_lines(logs)):
+        found[(s["hand"], s["object"])].setdefault(s["seed"], s)
     done = set()
     if Path(out).exists():
         done = {(x["hand"], x["object"]) for x in map(json.loads, Path(out).read_text().splitlines())}

@@ -9,11 +9,10 @@ residual that lifts from the most starts. With `--heldout N` that residual and t
 other starts (one N-slot env, seed 5000): the out-of-sample check of the choice."""
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 
-from probe_open_loop_search import episode_scores, finger_masks_of, search_contract
+from probe_open_loop_search import episode_scores, finger_masks_of, search_contract, search_lines
 
 from dgz_cli.rl.checkpoint import LoadedPolicy
 from dgz_cli.sim.evaluate import make_env
@@ -26,8 +25,7 @@ HELDOUT_SEED = 5000
 
 
 def main(checkpoint: str, logs: list[str], heldout: int = 0) -> None:
-    lines = [json.loads(x) for log in logs for x in Path(log).read_text().splitlines() if x.startswith("{")]
-    lines = [x for x in lines if x["starts"] == 1]
+    lines = [x for x in search_lines(logs) if x["starts"] == 1]
     hand, obj = lines[0]["hand"], lines[0]["object"]
     meta = LoadedPolicy(checkpoint).meta
     cfg = meta.env.model_copy(update=dict(contract=search_contract(meta.contract, lines[0].get("aim", 0.08))))

@@ -19,6 +19,7 @@ SEED + 1000). With STARTS 1 and SEED 0, 1, ... it asks, start by start, whether 
 from that start. A probe of what the contract can express, not a policy."""
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -79,6 +80,16 @@ def episode_scores(env, theta: np.ndarray, finger_masks: list[np.ndarray], seed:
             if not done[b]:
                 done[b], success[b], rise[b] = True, ep["success"], ep["max_rise"]
     return float(success.mean()), float(rise.mean())
+
+
+def search_lines(logs: list[str]) -> list[dict]:
+    """The JSON result lines of this probe's logs (and of ``tools/pick_pair_residuals.py``'s), in order."""
+    return [json.loads(x) for log in logs for x in Path(log).read_text().splitlines() if x.startswith("{")]
+
+
+def lifted_per_start(line: dict) -> bool:
+    """Whether a result line is a per-start search (``starts`` 1) at the default aim range that lifted the object."""
+    return line["starts"] == 1 and line["best"] >= 1.0 and line.get("aim", AIM) == AIM
 
 
 def search_contract(contract, aim: float = AIM):

@@ -120,6 +120,7 @@ class PPO:
         keys = ("loss", "surrogate_loss", "value_loss", "entropy", "kl", "clip_fraction", "grad_norm")
         acc = {k: 0.0 for k in keys}
         n = 0
+        critic = {id(p) for p in self.policy.critic_parameters()} if critic_only else set()
         self.policy.train()
         for _ in range(c.num_epochs):
             for mb in storage.mini_batches(c.num_mini_batches, c.normalize_advantages):
@@ -147,7 +148,6 @@ class PPO:
                 self.optimizer.zero_grad(set_to_none=True)
                 if critic_only:
                     (c.value_loss_coef * value_loss).backward()
-                    critic = {id(p) for p in self.policy.critic_parameters()}
                     for p in self.policy.parameters():
                         if id(p) not in critic:
                             p.grad = None
