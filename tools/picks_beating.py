@@ -13,19 +13,16 @@ from pathlib import Path
 def main(picks: str, eval_json: str, out: str | None) -> None:
     hands = json.loads(Path(eval_json).read_text())["hands"]
     rows = [json.loads(line) for line in Path(picks).read_text().splitlines() if line.strip()]
-    kept = []
-    for r in rows:
-        policy = hands[r["hand"]]["objects"][r["object"]]["success_rate"]
+    rates = [hands[r["hand"]]["objects"][r["object"]]["success_rate"] for r in rows]
+    for r, policy in zip(rows, rates):
         print(f"{r['hand']:10s} {r['object']:24s} picked {r['heldout_best']:.2f} prior {r['heldout_prior']:.2f} "
               f"policy {policy:.2f}")
-        r["_policy"] = policy
-        if r["heldout_best"] > policy:
-            kept.append(r)
+    kept = [r for r, policy in zip(rows, rates) if r["heldout_best"] > policy]
     mean = lambda key: sum(r[key] for r in rows) / len(rows)
-    print(f"mean picked {mean('heldout_best'):.3f} prior {mean('heldout_prior'):.3f} policy {mean('_policy'):.3f}; "
-          f"picked > policy on {len(kept)} of {len(rows)}")
+    print(f"mean picked {mean('heldout_best'):.3f} prior {mean('heldout_prior'):.3f} policy "
+          f"{sum(rates) / len(rates):.3f}; picked > policy on {len(kept)} of {len(rows)}")
     if out:
-        lines = "".join(json.dumps({k: v for k, v in r.items() if k != "_policy"}) + "\n" for r in kept)
+        lines = "".join(json.dumps(r) + "\n" for r in kept)
         tmp = Path(out + ".tmp")
         tmp.write_text(lines)
         tmp.replace(out)

@@ -17,18 +17,18 @@ import numpy as np
 
 from dgz_cli.cli.hand_refs import hand_specs
 from dgz_cli.rl.checkpoint import LoadedPolicy, resolve_checkpoint
-from dgz_cli.sim.evaluate import failure_class, run_episodes
+from dgz_cli.sim.evaluate import FAILURE_CLASSES, failure_class, run_episodes
 from dgz_cli.sim.objects import resolve_objects
 from dgz_cli.spec.io import load_spec
 from dgz_cli.spec.models import FINGER_CLASSES
 
 THUMB, PALM = FINGER_CLASSES.index("thumb"), FINGER_CLASSES.index("wrist")
-OUTCOMES = ("success", "not lifted", "dropped during hold", "pushed away", "never touched", "unstable")
+OUTCOMES = ("success",) + FAILURE_CLASSES
 
 
 class Recorder:
     """Acts as the loaded policy and keeps, per (slot, episode of that slot), the contact summary of the
-    observation at control step ``grasp_steps``."""
+    observation at control step ``grasp_steps`` and, under ``lift_*`` keys, the most of each over the lift's steps."""
 
     def __init__(self, env, loaded: LoadedPolicy):
         self.env, self.loaded = env, loaded
@@ -105,6 +105,7 @@ def print_rows(label: str, by_outcome: dict[str, list[dict]], flush: bool = Fals
               f"{mean('digits'):3.1f}  thumb {mean('thumb'):.2f}  opposed {mean('opposed'):.2f}  palm {mean('palm'):.2f}  "
               f"force {mean('force_n'):5.1f} N | most during the lift: nodes {mean('lift_nodes'):4.1f}  opposed "
               f"{mean('lift_opposed'):.2f}  force {mean('lift_force_n'):5.1f} N", flush=flush)
+
 
 if __name__ == "__main__":
     if len(sys.argv) not in (5, 6):
